@@ -1,0 +1,35 @@
+# Set-up and everyday commands. Only python3 (3.11+) is needed on the machine.
+PYTHON ?= python3
+VENV   := .venv
+BIN    := $(VENV)/bin
+
+.PHONY: demo test lint bench tracks-table clean
+
+$(BIN)/python:
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+
+$(VENV)/.installed: pyproject.toml | $(BIN)/python
+	$(BIN)/python -m pip install --quiet -e .
+	touch $@
+
+$(VENV)/.installed-test: pyproject.toml | $(BIN)/python
+	$(BIN)/python -m pip install --quiet -e '.[test]'
+	touch $@ $(VENV)/.installed
+
+demo: $(VENV)/.installed
+	$(BIN)/rkmpc compare --track builtin --controllers pp,lmpc --out runs/demo
+
+test: $(VENV)/.installed-test
+	$(BIN)/ruff check src tests benchmarks
+	$(BIN)/mypy
+	$(BIN)/python -m pytest
+
+bench: $(VENV)/.installed
+	$(BIN)/python benchmarks/bench_step.py --out runs/bench/step_times.json
+
+tracks-table: $(VENV)/.installed
+	$(BIN)/python benchmarks/tracks_table.py --out runs/tracks
+
+clean:
+	rm -rf runs .pytest_cache .mypy_cache .ruff_cache

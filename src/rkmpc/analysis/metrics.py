@@ -1,0 +1,81 @@
+"""Tracking metrics of one run, as in the paper's Table I."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from rkmpc.sim.closed_loop import SimResult
+
+#: Keys of :func:`lap_metrics`, in table order.
+METRIC_KEYS = (
+    "completed",
+    "progress",
+    "lap_time_s",
+    "lateral_error_mean_m",
+    "lateral_error_max_m",
+    "heading_error_mean_rad",
+    "steer_rate_mean_rad_s",
+    "solve_ms_mean",
+    "solve_ms_p99",
+    "solve_ms_max",
+    "fallback_count",
+    "steps",
+)
+
+
+def lap_metrics(result: SimResult, laps: int = 1) -> dict[str, Any]:
+    """Metrics of a run over its first ``laps`` laps (or as far as it got).
+
+    Parameters
+    ----------
+    result : SimResult
+        The run.
+    laps : int
+        Laps the run was asked to drive (progress is a fraction of these).
+
+    Returns
+    -------
+    dict
+        ``completed`` (bool), ``progress`` (fraction of the requested laps,
+        0-1), ``lap_time_s`` (first lap, s; None if not completed),
+        ``lateral_error_mean_m`` and ``lateral_error_max_m`` (absolute offset
+        from the reference path, m), ``heading_error_mean_rad`` (mean absolute
+        heading error, rad), ``steer_rate_mean_rad_s`` (mean absolute rate of
+        the actual front wheel angle, rad/s), ``solve_ms_mean``,
+        ``solve_ms_p99``, ``solve_ms_max`` (controller step time, ms),
+        ``fallback_count`` and ``steps``.
+    """
+    log = result.log
+    t = log["t"]
+    progress_m = log["progress"]
+    n = len(t)
+    first_lap = progress_m <= result.lap_length
+    lat = np.abs(log["lateral_error"][first_lap])
+    head = np.abs(log["heading_error"][first_lap])
+    wheel = log["wheel_angle"][first_lap]
+    dt = float(np.median(np.diff(t))) if n > 1 else math.nan
+    steer_rate = np.abs(np.diff(wheel)) / dt if len(wheel) > 1 else np.array([math.nan])
+    solve_ms = 1e3 * log["solve_time_s"]
+    solve_ms = solve_ms[np.isfinite(solve_ms)]
+    return {
+        "completed": bool(result.completed),
+        "progress": float(min(result.progress / laps, 1.0)),
+        "lap_time_s": float(result.lap_times[0]) if result.lap_times else None,
+        "lateral_error_mean_m": _mean(lat),
+        "lateral_error_max_m": float(lat.max()) if lat.size else None,
+        "heading_error_mean_rad": _mean(head),
+        "steer_rate_mean_rad_s": _mean(steer_rate),
+        "solve_ms_mean": _mean(solve_ms),
+        "solve_ms_p99": float(np.percentile(solve_ms, 99)) if solve_ms.size else None,
+        "solve_ms_max": float(solve_ms.max()) if solve_ms.size else None,
+        "fallback_count": int(result.fallback_count),
+        "steps": int(n),
+    }
+
+
+def _mean(values: np.ndarray) -> float | None:
+    values = values[np.isfinite(values)]
+    return float(values.mean()) if values.size else None

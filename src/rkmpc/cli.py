@@ -1,0 +1,141 @@
+"""Command line: ``rkmpc run``, ``rkmpc compare``, ``rkmpc tracks``."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from rkmpc.errors import RkmpcError
+
+
+def _add_scenario_args(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--track", default="builtin", help="built-in track name or TUM centre-line CSV")
+    parser.add_argument(
+        "--raceline", default=None, help="TUM race-line CSV to track instead of the centre line"
+    )
+    parser.add_argument(
+        "--scale", type=float, default=None, help="scale of track files (default: 0.1 for f1tenth)"
+    )
+    parser.add_argument("--vehicle", default="f1tenth", choices=["f1tenth", "fullsize"])
+    parser.add_argument("--laps", type=int, default=1)
+    parser.add_argument("--seed", type=int, default=0, help="seed of every random choice (noise)")
+    parser.add_argument("--noise", action="store_true", help="add measurement noise to the observations")
+    parser.add_argument("--out", required=True, type=Path, help="output folder")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of the ``rkmpc`` command."""
+    from rkmpc.control.factory import CONTROLLERS
+
+    parser = argparse.ArgumentParser(prog="rkmpc", description=__doc__)
+    sub = parser.add_subparsers(dest="command", required=True)
+    run = sub.add_parser("run", help="drive one controller around a track")
+    run.add_argument("--controller", required=True, choices=sorted(CONTROLLERS))
+    _add_scenario_args(run)
+    compare = sub.add_parser("compare", help="drive several controllers and tabulate them")
+    compare.add_argument("--controllers", default="pp,lmpc", help="comma-separated controller names")
+    _add_scenario_args(compare)
+    sub.add_parser("tracks", help="list the built-in tracks")
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point; returns the exit status."""
+    args = build_parser().parse_args(argv)
+    try:
+        if args.command == "tracks":
+            return _cmd_tracks()
+        names = [args.controller] if args.command == "run" else _split(args.controllers)
+        return _cmd_compare(args, names, single=args.command == "run")
+    except (RkmpcError, ValueError, OSError) as exc:
+        print(f"rkmpc: error: {exc}", file=sys.stderr)
+        return 2
+
+
+def _split(text: str) -> list[str]:
+    from rkmpc.control.factory import CONTROLLERS
+
+    names = [n.strip() for n in text.split(",") if n.strip()]
+    unknown = [n for n in names if n not in CONTROLLERS]
+    if unknown or not names:
+        raise ValueError(f"unknown controller(s) {unknown}; known: {sorted(CONTROLLERS)}")
+    return names
+
+
+def _cmd_tracks() -> int:
+    from rkmpc.track.builtin import BUILTIN_DESCRIPTIONS, builtin_track
+
+    for name, text in BUILTIN_DESCRIPTIONS.items():
+        length = builtin_track(name).centerline.length
+        print(f"{name:12s} {length:7.1f} m  {text}")
+    return 0
+
+
+def _cmd_compare(args: argparse.Namespace, names: list[str], *, single: bool) -> int:
+    from rich.console import Console
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+    from rich.table import Table
+
+    from rkmpc.analysis.plots import plot_runs, save_figure
+    from rkmpc.analysis.table import markdown_table, table_header, table_rows
+    from rkmpc.experiments.runner import DEFAULT_NOISE, RunSpec, run_controller, run_record
+    from rkmpc.scenario import load_scenario
+    from rkmpc.sim.log import write_json_atomic
+
+    console = Console(stderr=True)
+    scenario = load_scenario(args.track, raceline=args.raceline, scale=args.scale, vehicle=args.vehicle)
+    specs = [
+        RunSpec(controller=n, laps=args.laps, seed=args.seed, noise=DEFAULT_NOISE if args.noise else None)
+        for n in names
+    ]
+    out: Path = args.out
+    out.mkdir(parents=True, exist_ok=True)
+    results: dict[str, dict[str, Any]] = {}
+    logs = {}
+    goal = float(args.laps)
+    with Progress(
+        TextColumn("{task.description}"),
+        BarColumn(),
+        TextColumn("{task.percentage:>5.1f}%"),
+        TimeElapsedColumn(),
+        console=console,
+        transient=True,
+        disable=not console.is_terminal,
+    ) as progress:
+        for spec in specs:
+            task = progress.add_task(f"{spec.controller} on {scenario.track.name}", total=goal)
+
+            def on_step(_t: float, laps_done: float, task: Any = task) -> None:
+                progress.update(task, completed=min(laps_done, goal))
+
+            result, metrics = run_controller(scenario, spec, on_step=on_step)
+            progress.remove_task(task)
+            results[spec.controller] = metrics
+            logs[spec.controller] = result.log
+            log_name = "log.csv" if single else f"log_{spec.controller}.csv"
+            result.log.to_csv(out / log_name)
+            console.print(f"{spec.controller}: {result.outcome}, {metrics['steps']} steps")
+    record = run_record(scenario, specs)
+    if single:
+        write_json_atomic(out / "metrics.json", {**results[names[0]], "config": record})
+    else:
+        write_json_atomic(out / "results.json", {"controllers": results, "config": record})
+        (out / "table.md").write_text(markdown_table(results))
+    title = f"{scenario.track.name} (scale {scenario.track.scale:g}, {scenario.vehicle_name})"
+    save_figure(plot_runs(logs, scenario.track, title=title), out / "plot.png")
+
+    with_change = "lmpc" in results and len(results) > 1
+    table = Table(title=title)
+    for col in table_header(with_change):
+        table.add_column(col)
+    for row in table_rows(results, "lmpc" if with_change else None):
+        table.add_row(*row)
+    Console().print(table)
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    raise SystemExit(main())

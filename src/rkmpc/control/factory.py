@@ -1,0 +1,54 @@
+"""Build controllers by name."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
+
+from rkmpc.control.base import Controller
+from rkmpc.control.lmpc import LinearMPC
+from rkmpc.control.pure_pursuit import PurePursuit
+from rkmpc.vehicle.params import VehicleParams
+
+if TYPE_CHECKING:
+    from rkmpc.track.reference import Reference
+
+ControllerFactory = Callable[..., Controller]
+
+#: Controller builders by registry name; each takes ``(reference, vehicle, **options)``.
+CONTROLLERS: dict[str, ControllerFactory] = {
+    "pp": PurePursuit,
+    "lmpc": LinearMPC,
+}
+
+
+def register_controller(name: str, factory: ControllerFactory) -> None:
+    """Add a controller builder to the registry under ``name``."""
+    if name in CONTROLLERS:
+        raise ValueError(f"a controller named {name!r} is already registered")
+    CONTROLLERS[name] = factory
+
+
+def make_controller(name: str, reference: Reference, vehicle: VehicleParams, **options: Any) -> Controller:
+    """Build a controller by name.
+
+    Parameters
+    ----------
+    name : str
+        Registry name: ``"pp"`` (pure pursuit) or ``"lmpc"`` (linear MPC).
+    reference : Reference
+        Path and speed profile to track.
+    vehicle : VehicleParams
+        The car's parameters.
+    **options
+        Passed to the controller, for example ``config=LMPCConfig(...)``.
+
+    Returns
+    -------
+    Controller
+    """
+    try:
+        factory = CONTROLLERS[name]
+    except KeyError:
+        raise ValueError(f"unknown controller {name!r}; known: {sorted(CONTROLLERS)}") from None
+    return factory(reference, vehicle, **options)

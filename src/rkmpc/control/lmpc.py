@@ -1,0 +1,358 @@
+"""Linear MPC on the linearised kinematic bicycle model (the paper's MPC1).
+
+At each step the kinematic model is linearised along the time-indexed
+reference (paper Eq. 2-3), the deviation dynamics are condensed into a dense
+QP in the input deviations, and the QP is solved by a backend of
+:mod:`rkmpc.control.qp` that was set up once and is only updated.
+
+The linearised matrices ``A_k`` have the form ``I + E_k`` with ``E_k`` non-zero
+only in the heading column, so any product ``A_k ... A_i`` equals
+``I + sum(E_j)``. The condensed prediction matrices are therefore built from
+cumulative sums in a few vectorised operations, without a loop over the horizon.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from rkmpc.control.base import Command, Controller, Observation
+from rkmpc.control.qp import make_qp
+from rkmpc.errors import ParameterError
+from rkmpc.vehicle.kinematic import kinematic_step, linearize_discrete
+from rkmpc.vehicle.params import VehicleParams
+
+if TYPE_CHECKING:
+    from rkmpc.track.reference import Reference
+
+
+def wrap_angle(angle: float) -> float:
+    """Wrap an angle (rad) to ``[-pi, pi)``."""
+    return (angle + math.pi) % (2.0 * math.pi) - math.pi
+
+
+@dataclass(frozen=True)
+class LMPCConfig:
+    """Weights, horizon and solver of the linear MPC.
+
+    The stage cost is the paper's MPC1,
+    ``(x-x_r)^2 + (y-y_r)^2 + heading*(theta-theta_r)^2 + speed*(v-v_r)^2 +
+    steer*(delta-delta_r)^2``, plus a penalty on the change of each input from
+    one step to the next (per step, not per second), which the baseline needs
+    to stay smooth on the real plant.
+
+    Parameters
+    ----------
+    horizon : int
+        Prediction horizon N (steps).
+    dt : float
+        Control period T (s).
+    position_weight : float
+        Weight of the squared x and y errors (1/m^2 relative units).
+    heading_weight : float
+        lambda: weight of the squared heading error.
+    speed_weight : float
+        mu: weight of the squared speed deviation.
+    steer_weight : float
+        epsilon: weight of the squared steering deviation.
+    speed_rate_weight, steer_rate_weight : float
+        Weights of the squared step-to-step changes of speed and steering.
+    terminal_factor : float
+        Multiplier of the state weights at the last step of the horizon.
+    speed_margin : float
+        Largest speed above the reference speed profile the MPC may command
+        (m/s). Without it the kinematic model, in which yaw rate grows with
+        speed, accelerates into corners whenever the steering saturates.
+    lookahead_time : float
+        Start the prediction from the pose the kinematic model expects this many
+        seconds ahead under the previous command (latency compensation); 0 starts
+        from the observed pose.
+    solver : str
+        QP backend, ``"daqp"`` (default) or ``"osqp"``.
+    max_iterations : int
+        QP iteration budget per step; a solve that exceeds it falls back.
+    """
+
+    horizon: int = 30
+    dt: float = 0.05
+    position_weight: float = 1.0
+    heading_weight: float = 5.0
+    speed_weight: float = 0.05
+    steer_weight: float = 2.0
+    speed_rate_weight: float = 0.05
+    steer_rate_weight: float = 30.0
+    terminal_factor: float = 1.0
+    lookahead_time: float = 0.0
+    speed_margin: float = 0.0
+    solver: str = "daqp"
+    max_iterations: int = 200
+
+    def __post_init__(self) -> None:
+        if self.horizon < 2:
+            raise ParameterError(f"LMPCConfig.horizon must be >= 2, got {self.horizon}")
+        if not (math.isfinite(self.dt) and self.dt > 0):
+            raise ParameterError(f"LMPCConfig.dt must be > 0, got {self.dt}")
+        for name in (
+            "position_weight",
+            "heading_weight",
+            "speed_weight",
+            "steer_weight",
+            "speed_rate_weight",
+            "steer_rate_weight",
+            "terminal_factor",
+        ):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0):
+                raise ParameterError(f"LMPCConfig.{name} must be finite and >= 0, got {value}")
+        if self.speed_weight + self.speed_rate_weight <= 0 or self.steer_weight + self.steer_rate_weight <= 0:
+            raise ParameterError("LMPCConfig: each input needs a positive weight or rate weight")
+        if self.max_iterations < 1:
+            raise ParameterError(f"LMPCConfig.max_iterations must be >= 1, got {self.max_iterations}")
+
+
+class KinematicMPCProblem:
+    """The condensed QP of MPC1 for one reference horizon (numbers only, no solver).
+
+    Decision variables are the input deviations ``[dv_0, ddelta_0, dv_1, ...]``
+    from the reference inputs, shape (2N,).
+
+    Parameters
+    ----------
+    config : LMPCConfig
+        Weights and horizon.
+    vehicle : VehicleParams
+        Wheelbase and input limits.
+    """
+
+    def __init__(self, config: LMPCConfig, vehicle: VehicleParams) -> None:
+        n = config.horizon
+        self.config = config
+        self.vehicle = vehicle
+        self.n = n
+        w_state = np.array([config.position_weight, config.position_weight, config.heading_weight])
+        q = np.tile(w_state, n)
+        q[-3:] *= config.terminal_factor
+        self.q_diag = q
+        self.r_diag = np.tile([config.speed_weight, config.steer_weight], n)
+        self.w_rate = np.tile([config.speed_rate_weight, config.steer_rate_weight], n)
+        # D maps U to [u_0, u_1 - u_0, ..., u_{N-1} - u_{N-2}].
+        D = np.eye(2 * n) - np.eye(2 * n, k=-2)
+        self.D = D
+        self.DtWD = D.T @ (self.w_rate[:, None] * D)
+        self.R_plus_rate = np.diag(self.r_diag) + self.DtWD
+        # Steering-rate constraint rows: the steering entries of D U.
+        self.A_rate = D[1::2, :].copy()
+        self.steer_step_max = vehicle.steering.max_rate * config.dt
+        self.u_min = np.array([vehicle.drive.min_speed, -vehicle.steering.max_angle])
+        self.u_max = np.array([vehicle.drive.max_speed, vehicle.steering.max_angle])
+        self._tril = np.tril(np.ones((n, n), dtype=bool))
+
+    def prediction_matrices(
+        self, theta_r: np.ndarray, v_r: np.ndarray, delta_r: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Condensed prediction ``X = Phi @ xi0 + Gamma @ U`` along the reference.
+
+        Parameters
+        ----------
+        theta_r, v_r, delta_r : numpy.ndarray
+            Reference heading (rad), speed (m/s) and wheel angle (rad), shape (N,).
+
+        Returns
+        -------
+        Phi : numpy.ndarray
+            Shape (3N, 3).
+        Gamma : numpy.ndarray
+            Shape (3N, 2N), block lower triangular.
+        """
+        n = self.n
+        A, B = linearize_discrete(theta_r, v_r, delta_r, self.vehicle.wheelbase, self.config.dt)
+        ca = np.cumsum(A[:, 0, 2])
+        cb = np.cumsum(A[:, 1, 2])
+        G = np.empty((n, n, 3, 2))
+        G[:, :, 0, :] = B[None, :, 0, :] + (ca[:, None] - ca[None, :])[..., None] * B[None, :, 2, :]
+        G[:, :, 1, :] = B[None, :, 1, :] + (cb[:, None] - cb[None, :])[..., None] * B[None, :, 2, :]
+        G[:, :, 2, :] = B[None, :, 2, :]
+        G[~self._tril] = 0.0
+        Gamma = G.transpose(0, 2, 1, 3).reshape(3 * n, 2 * n)
+        Phi = np.zeros((n, 3, 3))
+        Phi[:, 0, 0] = 1.0
+        Phi[:, 1, 1] = 1.0
+        Phi[:, 2, 2] = 1.0
+        Phi[:, 0, 2] = ca
+        Phi[:, 1, 2] = cb
+        return Phi.reshape(3 * n, 3), Gamma
+
+    def qp_numbers(
+        self,
+        xi0: np.ndarray,
+        u_ref: np.ndarray,
+        u_prev: np.ndarray,
+        Phi: np.ndarray,
+        Gamma: np.ndarray,
+    ) -> tuple[np.ndarray, ...]:
+        """Hessian, gradient and bounds of the condensed QP.
+
+        Parameters
+        ----------
+        xi0 : numpy.ndarray
+            Initial deviation ``[x-x_r, y-y_r, theta-theta_r]``, shape (3,).
+        u_ref : numpy.ndarray
+            Reference inputs ``[v_r, delta_r]``, shape (N, 2).
+        u_prev : numpy.ndarray
+            Previously applied input, shape (2,).
+        Phi, Gamma : numpy.ndarray
+            From :meth:`prediction_matrices`.
+
+        Returns
+        -------
+        tuple
+            ``(H, f, lb, ub, lbA, ubA)``.
+        """
+        GtQ = Gamma.T * self.q_diag
+        H = 2.0 * (GtQ @ Gamma + self.R_plus_rate)
+        # Rate offsets d: reference changes, and the jump from the previous input.
+        d = np.empty_like(u_ref)
+        d[0] = u_ref[0] - u_prev
+        d[1:] = u_ref[1:] - u_ref[:-1]
+        d = d.ravel()
+        f = 2.0 * (GtQ @ (Phi @ xi0) + self.D.T @ (self.w_rate * d))
+        u_flat = u_ref.ravel()
+        lb = np.tile(self.u_min, self.n) - u_flat
+        ub = np.tile(self.u_max, self.n) - u_flat
+        # The speed may not exceed the profile (which respects the grip limit) by more than a margin.
+        ub[0::2] = np.minimum(ub[0::2], self.config.speed_margin)
+        lb[0::2] = np.minimum(lb[0::2], ub[0::2])
+        d_steer = d[1::2]
+        lbA = -self.steer_step_max - d_steer
+        ubA = self.steer_step_max - d_steer
+        return H, f, lb, ub, lbA, ubA
+
+
+class LinearMPC(Controller):
+    """The paper's linear MPC (MPC1) on the kinematic bicycle model.
+
+    Parameters
+    ----------
+    reference : Reference
+        The path and speed profile to track.
+    vehicle : VehicleParams
+        Wheelbase and actuator limits.
+    config : LMPCConfig, optional
+        Weights, horizon and solver.
+    """
+
+    name = "lmpc"
+
+    def __init__(
+        self, reference: Reference, vehicle: VehicleParams, config: LMPCConfig | None = None
+    ) -> None:
+        super().__init__()
+        self.reference = reference
+        self.vehicle = vehicle
+        self.config = config if config is not None else LMPCConfig()
+        self.problem = KinematicMPCProblem(self.config, vehicle)
+        self._qp = make_qp(self.config.solver, max_iterations=self.config.max_iterations)
+        self._s_hint: float | None = None
+        self._u_prev: np.ndarray | None = None
+        self._plan: np.ndarray | None = None
+        self._plan_age = 0
+        #: Last predicted absolute input sequence, shape (N, 2), and reference horizon.
+        self.last_plan: np.ndarray | None = None
+
+    def _reset(self) -> None:
+        self._s_hint = None
+        self._u_prev = None
+        self._plan = None
+        self._plan_age = 0
+        self.last_plan = None
+
+    def solve_plan(self, observation: Observation) -> tuple[np.ndarray, np.ndarray, bool, str]:
+        """Solve MPC1 for this observation without applying anything.
+
+        Returns
+        -------
+        plan : numpy.ndarray
+            Absolute inputs ``[v, delta]`` over the horizon, shape (N, 2).
+        u_ref : numpy.ndarray
+            Reference inputs over the horizon, shape (N, 2).
+        solved : bool
+            Whether the QP solver succeeded.
+        status : str
+            The solver's status.
+        """
+        cfg = self.config
+        n = cfg.horizon
+        px, py, pyaw = self._reference_point(observation)
+        proj = self.reference.project(px, py, self._s_hint)
+        self._s_hint = proj.s
+        ref = self.reference.horizon(proj.s, n, cfg.dt)
+        theta_r = ref.theta[:n]
+        u_ref = np.column_stack([ref.v[:n], ref.delta[:n]])
+        if self._u_prev is None:
+            # First step: the car is taken to hold its speed and the feed-forward angle.
+            self._u_prev = np.array([observation.speed, u_ref[0, 1]])
+        xi0 = np.array(
+            [
+                px - ref.x[0],
+                py - ref.y[0],
+                wrap_angle(pyaw - ref.theta[0]),
+            ]
+        )
+        Phi, Gamma = self.problem.prediction_matrices(theta_r, ref.v[:n], ref.delta[:n])
+        H, f, lb, ub, lbA, ubA = self.problem.qp_numbers(xi0, u_ref, self._u_prev, Phi, Gamma)
+        if not self._qp.is_setup:
+            self._qp.setup(H, f, lb, ub, self.problem.A_rate, lbA, ubA)
+        else:
+            self._qp.update(H=H, f=f, lb=lb, ub=ub, lbA=lbA, ubA=ubA)
+        result = self._qp.solve()
+        solved = result.solved and bool(np.all(np.isfinite(result.x)))
+        plan = u_ref + result.x.reshape(n, 2) if solved else u_ref.copy()
+        return plan, u_ref, solved, result.status
+
+    def _step(self, observation: Observation) -> tuple[Command, str, str]:
+        plan, u_ref, solved, status = self.solve_plan(observation)
+        if solved:
+            self._plan = plan
+            self._plan_age = 0
+            u = plan[0]
+            flag, message = "ok", ""
+        else:
+            u = self._fallback(u_ref)
+            flag, message = "fallback", f"QP failed: {status}"
+        u = self._clip(u)
+        self._u_prev = u
+        self.last_plan = plan if solved else None
+        return Command(speed=float(u[0]), steer=float(u[1])), flag, message
+
+    def _reference_point(self, observation: Observation) -> tuple[float, float, float]:
+        """Pose ``(x, y, yaw)`` the MPC starts from.
+
+        With ``lookahead_time > 0`` the observed pose is predicted that far ahead
+        with the kinematic model and the previous command, so that the plan starts
+        where the car will be when the actuators have responded.
+        """
+        pose = (observation.x, observation.y, observation.yaw)
+        t_ahead = self.config.lookahead_time
+        if t_ahead <= 0.0 or self._u_prev is None:
+            return pose
+        v = max(observation.speed, 0.0)
+        nxt = kinematic_step(np.array(pose), np.array([v, self._u_prev[1]]), self.vehicle.wheelbase, t_ahead)
+        return float(nxt[0]), float(nxt[1]), float(nxt[2])
+
+    def _fallback(self, u_ref: np.ndarray) -> np.ndarray:
+        """The previous plan shifted by one step, or the reference feed-forward."""
+        self._plan_age += 1
+        if self._plan is not None and self._plan_age < self.config.horizon:
+            return self._plan[self._plan_age].copy()
+        return u_ref[0].copy()
+
+    def _clip(self, u: np.ndarray) -> np.ndarray:
+        """Clip to the input bounds and the steering step allowed by the rate limit."""
+        steer = float(u[1])
+        if self._u_prev is not None:
+            step = self.problem.steer_step_max
+            steer = min(max(steer, self._u_prev[1] - step), self._u_prev[1] + step)
+        return np.clip(np.array([u[0], steer]), self.problem.u_min, self.problem.u_max)

@@ -1,0 +1,36 @@
+"""Exceptions raised by rkmpc for bad user input."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+
+class RkmpcError(Exception):
+    """Base class of the errors rkmpc raises on purpose."""
+
+
+class InputFileError(RkmpcError, ValueError):
+    """A user-supplied file is unreadable or its content is invalid.
+
+    Parameters
+    ----------
+    path : str or Path
+        The offending file.
+    problem : str
+        What is wrong, in words.
+    field : str, optional
+        The column, key or field at fault, where one is.
+    """
+
+    def __init__(self, path: str | Path, problem: str, field: str | None = None) -> None:
+        self.path = Path(path)
+        self.field = field
+        self.problem = problem
+        where = f"{self.path}"
+        if field is not None:
+            where += f" [{field}]"
+        super().__init__(f"{where}: {problem}")
+
+
+class ParameterError(RkmpcError, ValueError):
+    """A parameter set failed validation (names the parameter and the problem)."""

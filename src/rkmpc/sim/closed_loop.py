@@ -1,0 +1,303 @@
+"""The closed loop: plant -> observation -> controller -> command -> plant."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from rkmpc.control.base import OBSERVATION_FIELDS, Controller
+from rkmpc.errors import ParameterError
+from rkmpc.sim.log import StepLog
+from rkmpc.track.reference import Reference
+from rkmpc.track.track import Track
+from rkmpc.vehicle.plant import Plant
+
+#: Ways a run can end.
+OUTCOMES = ("completed", "off_track", "timeout", "diverged")
+
+_STATUS_CODES = {"ok": 0.0, "fallback": 1.0}
+
+
+@dataclass(frozen=True)
+class SimConfig:
+    """Settings of a closed-loop run.
+
+    Parameters
+    ----------
+    dt : float
+        Control period (s); the paper uses 50 ms.
+    laps : int
+        Laps to drive.
+    start_s : float
+        Arc length on the reference path where the car starts (m).
+    flying_start : bool
+        Start at the reference speed and feed-forward wheel angle (True), or
+        from standstill with straight wheels (False).
+    max_time : float or None
+        Time limit (s); None means three times the profile's lap time per lap
+        plus 10 s. Reaching it ends the run as ``"timeout"``.
+    """
+
+    dt: float = 0.05
+    laps: int = 1
+    start_s: float = 0.0
+    flying_start: bool = True
+    max_time: float | None = None
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.dt) and self.dt > 0):
+            raise ParameterError(f"SimConfig.dt must be > 0, got {self.dt}")
+        if self.laps < 1:
+            raise ParameterError(f"SimConfig.laps must be >= 1, got {self.laps}")
+        if self.max_time is not None and not self.max_time > 0:
+            raise ParameterError(f"SimConfig.max_time must be > 0, got {self.max_time}")
+
+
+@dataclass
+class SimResult:
+    """Outcome and log of one run.
+
+    Parameters
+    ----------
+    log : StepLog
+        One row per control step.
+    outcome : str
+        One of :data:`OUTCOMES`.
+    progress : float
+        Distance driven along the reference path, in laps.
+    lap_times : list of float
+        Time of each completed lap (s).
+    fallback_count : int
+        Steps on which the controller fell back.
+    lap_length : float
+        Length of one lap of the reference path (m).
+    """
+
+    log: StepLog
+    outcome: str
+    progress: float
+    lap_length: float
+    lap_times: list[float] = field(default_factory=list)
+    fallback_count: int = 0
+
+    @property
+    def completed(self) -> bool:
+        """Whether all requested laps were driven."""
+        return self.outcome == "completed"
+
+
+def log_columns(state_names: tuple[str, ...]) -> list[str]:
+    """Column names of the step log for a plant with these state names."""
+    return [
+        "t",
+        "s",
+        "progress",
+        *OBSERVATION_FIELDS,
+        *(f"state_{name}" for name in state_names),
+        "cmd_speed",
+        "cmd_steer",
+        "wheel_angle",
+        "x_r",
+        "y_r",
+        "theta_r",
+        "v_r",
+        "delta_r",
+        "lateral_error",
+        "heading_error",
+        "track_margin",
+        "solve_time_s",
+        "status",
+    ]
+
+
+def simulate(
+    plant: Plant,
+    controller: Controller,
+    track: Track,
+    reference: Reference,
+    config: SimConfig | None = None,
+    *,
+    on_step: Callable[[float, float], None] | None = None,
+) -> SimResult:
+    """Drive ``plant`` with ``controller`` around ``track`` and log every step.
+
+    The run ends when the requested laps are driven, when the car's centre of
+    gravity leaves the track (``"off_track"``, never an exception), when the
+    state turns non-finite (``"diverged"``) or at the time limit.
+
+    Parameters
+    ----------
+    plant : Plant
+        The simulated car; it is reset to the start pose.
+    controller : Controller
+        Any controller; it is reset first.
+    track : Track
+        Track boundaries, for the off-track check.
+    reference : Reference
+        Path and speed profile; errors are measured against its path.
+    config : SimConfig, optional
+        Control period, laps, start and time limit.
+    on_step : callable, optional
+        Called as ``on_step(time, progress_in_laps)`` after every step (for
+        progress bars).
+
+    Returns
+    -------
+    SimResult
+    """
+    cfg = config if config is not None else SimConfig()
+    path = reference.path
+    length = path.length
+    dt = cfg.dt
+    s0 = cfg.start_s % length
+    start = path.position(s0)
+    yaw0 = float(path.heading(s0))
+    wheelbase = reference.wheelbase
+    if cfg.flying_start:
+        speed0 = float(reference.profile.speed(s0))
+        steer0 = math.atan(wheelbase * float(path.curvature(s0)))
+    else:
+        speed0, steer0 = 0.0, 0.0
+    plant.reset(float(start[0]), float(start[1]), yaw0, speed0, steer0)
+    controller.reset()
+    max_time = (
+        cfg.max_time if cfg.max_time is not None else 3.0 * cfg.laps * reference.profile.lap_time + 10.0
+    )
+    goal = cfg.laps * length
+    max_steps = int(math.ceil(max_time / dt)) + 1
+    log = StepLog(log_columns(plant.STATE_NAMES), capacity=min(max_steps, 20000))
+
+    s_prev = s0
+    s_track: float | None = None
+    progress = 0.0
+    crossings: list[float] = []
+    outcome = "timeout"
+    for _ in range(max_steps):
+        obs = plant.observe()
+        t = plant.time
+        state = plant.state
+        if not np.all(np.isfinite(state)):
+            outcome = "diverged"
+            break
+        # Errors against the reference path; progress unwrapped across the start line.
+        true_x, true_y, true_yaw = float(state[0]), float(state[1]), float(state[2])
+        proj = path.project(true_x, true_y, s_prev)
+        ds = proj.s - s_prev
+        if ds < -0.5 * length:
+            ds += length
+        elif ds > 0.5 * length:
+            ds -= length
+        new_progress = progress + ds
+        if new_progress >= (len(crossings) + 1) * length and len(log) > 0:
+            # Interpolate the line-crossing time between the previous and this step.
+            frac = ((len(crossings) + 1) * length - progress) / max(ds, 1e-12)
+            crossings.append(t - dt + frac * dt)
+        progress = new_progress
+        s_prev = proj.s
+        s_track, _lat_track, margin = track.boundary_offsets(true_x, true_y, s_track)
+        heading_error = (true_yaw - float(proj.heading) + math.pi) % (2 * math.pi) - math.pi
+        if progress >= goal:
+            outcome = "completed"
+            break
+        if margin < 0.0:
+            outcome = "off_track"
+            _append(
+                log,
+                t,
+                proj.s,
+                progress,
+                obs,
+                state,
+                None,
+                plant,
+                reference,
+                proj.lateral,
+                heading_error,
+                margin,
+                controller,
+                wheelbase,
+            )
+            break
+        command = controller.step(obs)
+        _append(
+            log,
+            t,
+            proj.s,
+            progress,
+            obs,
+            state,
+            command,
+            plant,
+            reference,
+            proj.lateral,
+            heading_error,
+            margin,
+            controller,
+            wheelbase,
+        )
+        plant.step(command, dt)
+        if on_step is not None:
+            on_step(t, progress / length)
+    lap_times = list(np.diff([0.0, *crossings]).astype(float)) if crossings else []
+    log.metadata["outcome"] = outcome
+    log.metadata["lap_times"] = lap_times
+    return SimResult(
+        log=log,
+        outcome=outcome,
+        progress=progress / length,
+        lap_length=length,
+        lap_times=lap_times,
+        fallback_count=controller.fallback_count,
+    )
+
+
+def _append(
+    log,
+    t,
+    s,
+    progress,
+    obs,
+    state,
+    command,
+    plant,
+    reference,
+    lateral,
+    heading_error,  # type: ignore[no-untyped-def]
+    margin,
+    controller,
+    wheelbase,
+) -> None:
+    path = reference.path
+    pos = path.position(s)
+    if command is None:
+        cmd = (math.nan, math.nan)
+        solve, status = math.nan, math.nan
+    else:
+        cmd = (command.speed, command.steer)
+        solve = controller.info.solve_time_s
+        status = _STATUS_CODES.get(controller.info.status, 2.0)
+    row = np.concatenate(
+        [
+            [t, s, progress],
+            obs.as_array(),
+            state,
+            cmd,
+            [
+                plant.wheel_angle,
+                float(pos[0]),
+                float(pos[1]),
+                float(path.heading(s)),
+                float(reference.profile.speed(s)),
+                math.atan(wheelbase * float(path.curvature(s))),
+                lateral,
+                heading_error,
+                margin,
+                solve,
+                status,
+            ],
+        ]
+    )
+    log.append(row)

@@ -1,0 +1,356 @@
+"""Load tracks from CSV files in the TUM racetrack-database format.
+
+Centerline files have the columns ``x_m, y_m, w_tr_right_m, w_tr_left_m``
+and raceline files ``x_m, y_m``.  The first line is a header naming the
+columns (comma separated, optionally starting with ``#``); columns are found
+by name, so their order does not matter and extra columns are ignored.  The
+points form a closed loop; the first point should not be repeated at the end
+(if it is, the copy is dropped).
+
+Validation rules (each failure raises :class:`rkmpc.errors.InputFileError`
+naming the file, the column where relevant, and the problem):
+
+* the file must exist and be readable text with a header line;
+* every required column must be present; every value must parse as a number
+  (the error gives the line number) and be finite;
+* widths must be > 0;
+* consecutive exact duplicate points are dropped silently (this includes a
+  repeated closing point); at least 4 distinct points must remain;
+* the line must be closable: the closing gap (last point to first point) must
+  not exceed ``CLOSING_GAP_FACTOR`` (4) times the median spacing of the other
+  points *and* twice the largest other spacing.  A gap failing both tests is
+  taken as an open line (e.g. a C shape);
+* the closed polyline must not cross itself.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path as FilePath
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.spatial import cKDTree
+
+from rkmpc.errors import InputFileError, ParameterError
+from rkmpc.track.path import Path, dedupe_mask
+from rkmpc.track.track import Track
+
+__all__ = [
+    "CLOSING_GAP_FACTOR",
+    "find_self_intersection",
+    "load_centerline",
+    "load_raceline",
+    "load_track",
+]
+
+FloatArray = NDArray[np.float64]
+
+CLOSING_GAP_FACTOR = 4.0
+"""A closing gap larger than this many median spacings (and than twice the largest) is an open line."""
+
+_CENTER_COLUMNS = ("x_m", "y_m", "w_tr_right_m", "w_tr_left_m")
+_RACE_COLUMNS = ("x_m", "y_m")
+
+
+def _check_scale(scale: float) -> float:
+    try:
+        value = float(scale)
+    except (TypeError, ValueError) as exc:
+        raise ParameterError(f"scale must be a finite number > 0, got {scale!r}") from exc
+    if not (math.isfinite(value) and value > 0.0):
+        raise ParameterError(f"scale must be a finite number > 0, got {scale!r}")
+    return value
+
+
+def _is_number(token: str) -> bool:
+    try:
+        float(token)
+    except ValueError:
+        return False
+    return True
+
+
+def _read_columns(path: FilePath, required: tuple[str, ...]) -> dict[str, FloatArray]:
+    """Read the ``required`` columns of a CSV file as float arrays (one value per data row)."""
+    if not path.is_file():
+        raise InputFileError(path, "file does not exist or is not a regular file")
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputFileError(path, f"cannot read file: {exc}") from exc
+
+    lines = text.splitlines()
+    header: list[str] | None = None
+    header_line = 0
+    for lineno, raw in enumerate(lines, start=1):
+        stripped = raw.strip()
+        if not stripped:
+            continue
+        body = stripped.lstrip("#").strip()
+        tokens = [t.strip() for t in body.split(",")]
+        if stripped.startswith("#") or not all(_is_number(t) for t in tokens):
+            header = tokens
+            header_line = lineno
+        break
+    if header is None:
+        raise InputFileError(path, f"no header line naming the columns (expected {', '.join(required)})")
+
+    col_index: dict[str, int] = {}
+    for name in required:
+        if name not in header:
+            raise InputFileError(
+                path, f"missing column {name!r} (header has: {', '.join(header)})", field=name
+            )
+        col_index[name] = header.index(name)
+
+    n_cols = len(header)
+    rows: list[list[float]] = []
+    line_numbers: list[int] = []
+    for lineno, raw in enumerate(lines[header_line:], start=header_line + 1):
+        stripped = raw.strip()
+        if not stripped or stripped.startswith("#"):
+            continue
+        tokens = [t.strip() for t in stripped.split(",")]
+        if len(tokens) != n_cols:
+            raise InputFileError(path, f"line {lineno}: expected {n_cols} values, found {len(tokens)}")
+        row: list[float] = []
+        for name in required:
+            token = tokens[col_index[name]]
+            try:
+                value = float(token)
+            except ValueError:
+                problem = f"line {lineno}: non-numeric value {token!r}"
+                raise InputFileError(path, problem, field=name) from None
+            if not math.isfinite(value):
+                raise InputFileError(path, f"line {lineno}: value {token!r} is not finite", field=name)
+            row.append(value)
+        rows.append(row)
+        line_numbers.append(lineno)
+
+    data = np.array(rows, dtype=float).reshape(-1, len(required))
+    out = {name: data[:, k] for k, name in enumerate(required)}
+    out["_line"] = np.array(line_numbers, dtype=float)
+    return out
+
+
+def find_self_intersection(xy: ArrayLike) -> tuple[int, int] | None:
+    """Find two crossing segments of a closed polyline.
+
+    Segment ``i`` joins point ``i`` to point ``i + 1`` (the last one joins the
+    last point to the first).  Candidate pairs come from a KD-tree on segment
+    midpoints (two segments can only meet if their midpoints are closer than
+    the longest segment), and are then tested with vectorised orientation
+    tests.  Adjacent segments count as crossing only if they fold back onto
+    each other.
+
+    Parameters
+    ----------
+    xy : array_like, shape (n, 2)
+        Points of the closed polyline (m), first point not repeated.
+
+    Returns
+    -------
+    tuple of int or None
+        Indices ``(i, j)``, ``i < j``, of one pair of intersecting segments, or
+        None if the polyline is simple.
+    """
+    p = np.asarray(xy, dtype=float)
+    n = p.shape[0]
+    if n < 3:
+        return None
+    a = p
+    b = np.roll(p, -1, axis=0)
+    seg = b - a
+    seg_len = np.hypot(seg[:, 0], seg[:, 1])
+
+    # Adjacent segments folding back onto each other (a 180-degree reversal).
+    nxt = np.roll(seg, -1, axis=0)
+    cross_adj = seg[:, 0] * nxt[:, 1] - seg[:, 1] * nxt[:, 0]
+    dot_adj = np.einsum("ij,ij->i", seg, nxt)
+    norm = seg_len * np.roll(seg_len, -1)
+    fold = (dot_adj < 0.0) & (np.abs(cross_adj) <= 1e-12 * np.maximum(norm, 1e-300))
+    if np.any(fold):
+        i = int(np.flatnonzero(fold)[0])
+        j = (i + 1) % n
+        return (min(i, j), max(i, j))
+
+    mid = 0.5 * (a + b)
+    radius = float(seg_len.max()) * (1.0 + 1e-9)
+    pairs = cKDTree(mid).query_pairs(radius, output_type="ndarray")
+    if pairs.size == 0:
+        return None
+    i, j = pairs[:, 0], pairs[:, 1]
+    gap = np.abs(i - j)
+    keep = (gap != 1) & (gap != n - 1)
+    i, j = i[keep], j[keep]
+    if i.size == 0:
+        return None
+
+    def orient(o: FloatArray, d: FloatArray, q: FloatArray) -> FloatArray:
+        return (d[:, 0] - o[:, 0]) * (q[:, 1] - o[:, 1]) - (d[:, 1] - o[:, 1]) * (q[:, 0] - o[:, 0])
+
+    a1, b1, a2, b2 = a[i], b[i], a[j], b[j]
+    o1 = orient(a1, b1, a2)
+    o2 = orient(a1, b1, b2)
+    o3 = orient(a2, b2, a1)
+    o4 = orient(a2, b2, b1)
+    proper = (o1 * o2 <= 0.0) & (o3 * o4 <= 0.0)
+    collinear = (o1 == 0.0) & (o2 == 0.0)
+    if np.any(collinear):
+        # Collinear pairs: they meet only if their bounding boxes overlap.
+        lo1, hi1 = np.minimum(a1, b1), np.maximum(a1, b1)
+        lo2, hi2 = np.minimum(a2, b2), np.maximum(a2, b2)
+        overlap = np.all((lo1 <= hi2) & (lo2 <= hi1), axis=1)
+        proper = np.where(collinear, overlap, proper)
+    hits = np.flatnonzero(proper)
+    if hits.size == 0:
+        return None
+    k = int(hits[0])
+    return (int(min(i[k], j[k])), int(max(i[k], j[k])))
+
+
+def _validate_loop(
+    path: FilePath, cols: dict[str, FloatArray], width_cols: tuple[str, ...]
+) -> NDArray[np.bool_]:
+    """Check a loop read from ``path``; return the mask of rows kept after de-duplication."""
+    xy = np.column_stack([cols["x_m"], cols["y_m"]])
+    lines = cols["_line"]
+    for name in width_cols:
+        bad = np.flatnonzero(cols[name] <= 0.0)
+        if bad.size:
+            k = int(bad[0])
+            raise InputFileError(
+                path,
+                f"line {int(lines[k])}: width must be > 0, got {cols[name][k]:g}",
+                field=name,
+            )
+    keep = dedupe_mask(xy)
+    pts = xy[keep]
+    if pts.shape[0] < 4:
+        raise InputFileError(path, f"need at least 4 distinct points, found {pts.shape[0]}", field="x_m,y_m")
+
+    spacing = np.hypot(*np.diff(pts, axis=0).T)
+    gap = float(np.hypot(*(pts[0] - pts[-1])))
+    median = float(np.median(spacing))
+    if gap > CLOSING_GAP_FACTOR * median and gap > 2.0 * float(spacing.max()):
+        raise InputFileError(
+            path,
+            f"line is not closable: gap of {gap:.3g} m between the last and the first point is more than "
+            f"{CLOSING_GAP_FACTOR:g} x the median spacing ({median:.3g} m); expected a closed loop",
+            field="x_m,y_m",
+        )
+    hit = find_self_intersection(pts)
+    if hit is not None:
+        rows = np.flatnonzero(keep)
+        li = int(lines[rows[hit[0]]])
+        lj = int(lines[rows[hit[1]]])
+        raise InputFileError(
+            path,
+            f"line is self-intersecting: the segment starting at line {li} crosses the one "
+            f"starting at line {lj}",
+            field="x_m,y_m",
+        )
+    return keep
+
+
+def load_centerline(path: str | FilePath, *, scale: float = 1.0, name: str | None = None) -> Track:
+    """Load a track centerline with widths.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        CSV file with columns ``x_m, y_m, w_tr_right_m, w_tr_left_m`` (m).
+    scale : float, default 1.0
+        Factor applied to positions and widths (e.g. 0.1 for a 1:10 car).
+    name : str, optional
+        Track name; defaults to the file stem.
+
+    Returns
+    -------
+    Track
+        Track without a raceline; widths are interpolated (periodic, linear)
+        from the file's points onto a uniform arc-length grid.
+
+    Raises
+    ------
+    InputFileError
+        If the file is missing, unreadable or invalid (see module docstring).
+    ParameterError
+        If ``scale`` is not finite and positive.
+    """
+    factor = _check_scale(scale)
+    file = FilePath(path)
+    cols = _read_columns(file, _CENTER_COLUMNS)
+    keep = _validate_loop(file, cols, ("w_tr_right_m", "w_tr_left_m"))
+    xy = factor * np.column_stack([cols["x_m"][keep], cols["y_m"][keep]])
+    wr = factor * cols["w_tr_right_m"][keep]
+    wl = factor * cols["w_tr_left_m"][keep]
+    track_name = file.stem if name is None else name
+    centerline = Path.from_points(xy, name=track_name, source=str(file))
+    # Resample the widths onto a uniform arc-length grid (same number of samples as points).
+    length = centerline.length
+    s_pts = np.append(centerline.knot_s, length)
+    m = s_pts.size - 1
+    s_grid = np.arange(m) * (length / m)
+    wr_grid = np.interp(s_grid, s_pts, np.append(wr, wr[0]))
+    wl_grid = np.interp(s_grid, s_pts, np.append(wl, wl[0]))
+    return Track(track_name, centerline, wr_grid, wl_grid, scale=factor, source=str(file))
+
+
+def load_raceline(path: str | FilePath, *, scale: float = 1.0, name: str | None = None) -> Path:
+    """Load a racing line.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        CSV file with columns ``x_m, y_m`` (m).
+    scale : float, default 1.0
+        Factor applied to positions.
+    name : str, optional
+        Path name; defaults to the file stem.
+
+    Returns
+    -------
+    Path
+
+    Raises
+    ------
+    InputFileError
+        If the file is missing, unreadable or invalid (see module docstring).
+    ParameterError
+        If ``scale`` is not finite and positive.
+    """
+    factor = _check_scale(scale)
+    file = FilePath(path)
+    cols = _read_columns(file, _RACE_COLUMNS)
+    keep = _validate_loop(file, cols, ())
+    xy = factor * np.column_stack([cols["x_m"][keep], cols["y_m"][keep]])
+    return Path.from_points(xy, name=file.stem if name is None else name, source=str(file))
+
+
+def load_track(
+    centerline: str | FilePath,
+    raceline: str | FilePath | None = None,
+    *,
+    scale: float = 1.0,
+) -> Track:
+    """Load a track (centerline with widths) and optionally its racing line.
+
+    Parameters
+    ----------
+    centerline : str or pathlib.Path
+        Centerline CSV file (see :func:`load_centerline`); its stem names the track.
+    raceline : str or pathlib.Path, optional
+        Raceline CSV file (see :func:`load_raceline`).
+    scale : float, default 1.0
+        Factor applied to all positions and widths.
+
+    Returns
+    -------
+    Track
+    """
+    track = load_centerline(centerline, scale=scale)
+    if raceline is None:
+        return track
+    return track.with_raceline(load_raceline(raceline, scale=scale))

@@ -1,0 +1,58 @@
+"""Vehicle models: parameters, the paper's kinematic model, tyres and simulated plants."""
+
+from rkmpc.vehicle.dynamic import DynamicPlant
+from rkmpc.vehicle.fullsize import FullSizePlant
+from rkmpc.vehicle.kinematic import (
+    KINEMATIC_INPUT_NAMES,
+    KINEMATIC_STATE_NAMES,
+    kinematic_rhs,
+    kinematic_step,
+    linearize_discrete,
+)
+from rkmpc.vehicle.params import (
+    DriveParams,
+    PacejkaParams,
+    SteeringParams,
+    VehicleParams,
+    f1tenth,
+    fullsize,
+)
+from rkmpc.vehicle.plant import (
+    PLANTS,
+    ActuatedPlant,
+    CircularRegion,
+    FrictionChange,
+    FrictionSchedule,
+    Plant,
+    make_plant,
+)
+from rkmpc.vehicle.tyres import pacejka_lateral_force, pacejka_lateral_force_array
+from rkmpc.vehicle.wrappers import NoiseStd, ObservationNoise, PlantWrapper
+
+__all__ = [
+    "KINEMATIC_INPUT_NAMES",
+    "KINEMATIC_STATE_NAMES",
+    "PLANTS",
+    "ActuatedPlant",
+    "CircularRegion",
+    "DriveParams",
+    "DynamicPlant",
+    "FrictionChange",
+    "FrictionSchedule",
+    "FullSizePlant",
+    "NoiseStd",
+    "ObservationNoise",
+    "PacejkaParams",
+    "Plant",
+    "PlantWrapper",
+    "SteeringParams",
+    "VehicleParams",
+    "f1tenth",
+    "fullsize",
+    "kinematic_rhs",
+    "kinematic_step",
+    "linearize_discrete",
+    "make_plant",
+    "pacejka_lateral_force",
+    "pacejka_lateral_force_array",
+]
