@@ -6,10 +6,13 @@ names the vehicle presets and their default speed limits in one place.
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from dataclasses import dataclass
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
+from rkmpc.control.lmpc import LMPCConfig
+from rkmpc.control.pure_pursuit import PurePursuitConfig
 from rkmpc.track.builtin import builtin_track, list_builtin_tracks
 from rkmpc.track.loaders import load_raceline, load_track
 from rkmpc.track.reference import Reference
@@ -33,12 +36,16 @@ class VehiclePreset:
         Default limits of the speed profile for this car.
     file_scale : float
         Default scale for track files (the TUM tracks are full size).
+    controller_options : mapping
+        Options tuned for this car, by controller name, passed to
+        :func:`rkmpc.control.make_controller` unless the caller gives its own.
     """
 
     params: Callable[[], VehicleParams]
     plant: str
     limits: SpeedLimits
     file_scale: float
+    controller_options: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
 
 
 #: Vehicle presets by name.
@@ -54,8 +61,16 @@ VEHICLES: dict[str, VehiclePreset] = {
     "fullsize": VehiclePreset(
         params=fullsize,
         plant="fullsize",
-        limits=SpeedLimits(lateral_accel=6.0, brake_decel=5.0, accel=3.0, max_speed=30.0, min_speed=2.0),
+        limits=SpeedLimits(
+            lateral_accel=6.0, brake_decel=3.0, accel=2.0, max_speed=25.0, min_speed=2.0, curvature_rate=0.05
+        ),
         file_scale=1.0,
+        # Position errors are ten times larger than at 1:10 while wheel angles are alike,
+        # so the steering weights grow by about a hundred; the look-ahead grows with speed.
+        controller_options={
+            "lmpc": {"config": LMPCConfig(steer_weight=200.0, steer_rate_weight=100.0)},
+            "pp": {"config": PurePursuitConfig(min_lookahead=3.0, lookahead_gain=0.8, max_lookahead=40.0)},
+        },
     ),
 }
 

@@ -43,7 +43,9 @@ def test_lmpc_solver_failure_falls_back_and_counts(builtin_scenario):
     p = path.position(s)
     yaw = float(path.heading(s))
     # Far off the path with a wrong heading: the unconstrained optimum violates bounds.
-    obs = Observation(x=float(p[0]) + 0.4 * math.sin(yaw), y=float(p[1]) - 0.4 * math.cos(yaw), yaw=yaw + 0.5, speed=3.0)
+    obs = Observation(
+        x=float(p[0]) + 0.4 * math.sin(yaw), y=float(p[1]) - 0.4 * math.cos(yaw), yaw=yaw + 0.5, speed=3.0
+    )
     commands = [ctrl.step(obs) for _ in range(3)]
     assert ctrl.fallback_count >= 1
     assert ctrl.info.status == "fallback"

@@ -45,7 +45,7 @@ def test_backends_agree_and_update(name):
 
 
 def test_unconstrained_optimum_matches_linear_solve():
-    H, f, lb, ub, A, lbA, ubA = _random_qp(2)
+    H, f, lb, _ub, A, lbA, ubA = _random_qp(2)
     big = 1e6 * np.ones_like(lb)
     qp = make_qp("daqp")
     qp.setup(H, f, -big, big, A, -1e6 * np.ones(len(lbA)), 1e6 * np.ones(len(ubA)))

@@ -48,8 +48,22 @@ def test_log_has_every_step_and_column(builtin_scenario):
     log = result.log
     assert result.outcome in ("timeout", "off_track")
     assert len(log) == 21 or result.outcome == "off_track"
-    for col in ("t", "x", "yaw", "cmd_speed", "cmd_steer", "wheel_angle", "x_r", "theta_r", "v_r", "delta_r",
-                "lateral_error", "heading_error", "solve_time_s", "status"):
+    for col in (
+        "t",
+        "x",
+        "yaw",
+        "cmd_speed",
+        "cmd_steer",
+        "wheel_angle",
+        "x_r",
+        "theta_r",
+        "v_r",
+        "delta_r",
+        "lateral_error",
+        "heading_error",
+        "solve_time_s",
+        "status",
+    ):
         assert col in log.columns
     assert any(c.startswith("state_") for c in log.columns)
     np.testing.assert_allclose(np.diff(log["t"]), 0.05, atol=1e-9)
@@ -58,8 +72,9 @@ def test_log_has_every_step_and_column(builtin_scenario):
 
 def test_log_round_trip(tmp_path, builtin_scenario):
     sc = builtin_scenario
-    result = simulate(make_plant("f1tenth"), ConstantSteer(1.0, 0.0), sc.track, sc.reference,
-                      SimConfig(max_time=0.5))
+    result = simulate(
+        make_plant("f1tenth"), ConstantSteer(1.0, 0.0), sc.track, sc.reference, SimConfig(max_time=0.5)
+    )
     path = tmp_path / "log.csv"
     result.log.to_csv(path)
     back = StepLog.from_csv(path)

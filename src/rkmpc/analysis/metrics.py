@@ -8,6 +8,7 @@ from typing import Any
 import numpy as np
 
 from rkmpc.sim.closed_loop import SimResult
+from rkmpc.sim.log import StepLog
 
 #: Keys of :func:`lap_metrics`, in table order.
 METRIC_KEYS = (
@@ -23,6 +24,7 @@ METRIC_KEYS = (
     "solve_ms_max",
     "fallback_count",
     "steps",
+    "lateral_accel_max_m_s2",
 )
 
 
@@ -46,7 +48,9 @@ def lap_metrics(result: SimResult, laps: int = 1) -> dict[str, Any]:
         heading error, rad), ``steer_rate_mean_rad_s`` (mean absolute rate of
         the actual front wheel angle, rad/s), ``solve_ms_mean``,
         ``solve_ms_p99``, ``solve_ms_max`` (controller step time, ms),
-        ``fallback_count`` and ``steps``.
+        ``fallback_count``, ``steps`` and ``lateral_accel_max_m_s2`` (largest
+        ``|speed * yaw rate|`` of the true state, m/s^2; None when the plant
+        does not report both).
     """
     log = result.log
     t = log["t"]
@@ -73,7 +77,16 @@ def lap_metrics(result: SimResult, laps: int = 1) -> dict[str, Any]:
         "solve_ms_max": float(solve_ms.max()) if solve_ms.size else None,
         "fallback_count": int(result.fallback_count),
         "steps": int(n),
+        "lateral_accel_max_m_s2": _peak_lateral_accel(log, first_lap),
     }
+
+
+def _peak_lateral_accel(log: StepLog, rows: np.ndarray) -> float | None:
+    if "state_v" not in log.columns or "state_yaw_rate" not in log.columns:
+        return None
+    acc = np.abs(log["state_v"][rows] * log["state_yaw_rate"][rows])
+    acc = acc[np.isfinite(acc)]
+    return float(acc.max()) if acc.size else None
 
 
 def _mean(values: np.ndarray) -> float | None:

@@ -11,12 +11,12 @@ import matplotlib
 
 matplotlib.use("Agg")
 
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from matplotlib.figure import Figure  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.figure import Figure
 
-from rkmpc.sim.log import StepLog  # noqa: E402
-from rkmpc.track.track import Track  # noqa: E402
+from rkmpc.sim.log import StepLog
+from rkmpc.track.track import Track
 
 
 def plot_runs(logs: Mapping[str, StepLog], track: Track, title: str = "") -> Figure:

@@ -18,6 +18,7 @@ TABLE_COLUMNS: tuple[tuple[str, str, str], ...] = (
     ("solve_ms_max", "t max (ms)", "{:.3f}"),
     ("lap_time_s", "lap (s)", "{:.2f}"),
     ("fallback_count", "fallbacks", "{}"),
+    ("lateral_accel_max_m_s2", "peak a_y (m/s²)", "{:.1f}"),
 )
 
 _CHANGE_KEYS = ("lateral_error_mean_m", "heading_error_mean_rad", "steer_rate_mean_rad_s")

@@ -22,7 +22,7 @@ import numpy as np
 from rkmpc.control.base import Command, Controller, Observation
 from rkmpc.control.qp import make_qp
 from rkmpc.errors import ParameterError
-from rkmpc.vehicle.kinematic import kinematic_step, linearize_discrete
+from rkmpc.vehicle.kinematic import linearize_discrete
 from rkmpc.vehicle.params import VehicleParams
 
 if TYPE_CHECKING:
@@ -66,10 +66,6 @@ class LMPCConfig:
         Largest speed above the reference speed profile the MPC may command
         (m/s). Without it the kinematic model, in which yaw rate grows with
         speed, accelerates into corners whenever the steering saturates.
-    lookahead_time : float
-        Start the prediction from the pose the kinematic model expects this many
-        seconds ahead under the previous command (latency compensation); 0 starts
-        from the observed pose.
     solver : str
         QP backend, ``"daqp"`` (default) or ``"osqp"``.
     max_iterations : int
@@ -83,9 +79,8 @@ class LMPCConfig:
     speed_weight: float = 0.05
     steer_weight: float = 2.0
     speed_rate_weight: float = 0.05
-    steer_rate_weight: float = 30.0
+    steer_rate_weight: float = 0.1
     terminal_factor: float = 1.0
-    lookahead_time: float = 0.0
     speed_margin: float = 0.0
     solver: str = "daqp"
     max_iterations: int = 200
@@ -285,8 +280,7 @@ class LinearMPC(Controller):
         """
         cfg = self.config
         n = cfg.horizon
-        px, py, pyaw = self._reference_point(observation)
-        proj = self.reference.project(px, py, self._s_hint)
+        proj = self.reference.project(observation.x, observation.y, self._s_hint)
         self._s_hint = proj.s
         ref = self.reference.horizon(proj.s, n, cfg.dt)
         theta_r = ref.theta[:n]
@@ -296,9 +290,9 @@ class LinearMPC(Controller):
             self._u_prev = np.array([observation.speed, u_ref[0, 1]])
         xi0 = np.array(
             [
-                px - ref.x[0],
-                py - ref.y[0],
-                wrap_angle(pyaw - ref.theta[0]),
+                observation.x - ref.x[0],
+                observation.y - ref.y[0],
+                wrap_angle(observation.yaw - ref.theta[0]),
             ]
         )
         Phi, Gamma = self.problem.prediction_matrices(theta_r, ref.v[:n], ref.delta[:n])
@@ -326,21 +320,6 @@ class LinearMPC(Controller):
         self._u_prev = u
         self.last_plan = plan if solved else None
         return Command(speed=float(u[0]), steer=float(u[1])), flag, message
-
-    def _reference_point(self, observation: Observation) -> tuple[float, float, float]:
-        """Pose ``(x, y, yaw)`` the MPC starts from.
-
-        With ``lookahead_time > 0`` the observed pose is predicted that far ahead
-        with the kinematic model and the previous command, so that the plan starts
-        where the car will be when the actuators have responded.
-        """
-        pose = (observation.x, observation.y, observation.yaw)
-        t_ahead = self.config.lookahead_time
-        if t_ahead <= 0.0 or self._u_prev is None:
-            return pose
-        v = max(observation.speed, 0.0)
-        nxt = kinematic_step(np.array(pose), np.array([v, self._u_prev[1]]), self.vehicle.wheelbase, t_ahead)
-        return float(nxt[0]), float(nxt[1]), float(nxt[2])
 
     def _fallback(self, u_ref: np.ndarray) -> np.ndarray:
         """The previous plan shifted by one step, or the reference feed-forward."""

@@ -16,6 +16,7 @@ from __future__ import annotations
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -104,7 +105,16 @@ class DaqpQP(DenseQP):
         self._bu = np.zeros(0)
         self._bl = np.zeros(0)
 
-    def setup(self, H, f, lb, ub, A, lbA, ubA):  # type: ignore[no-untyped-def]
+    def setup(
+        self,
+        H: np.ndarray,
+        f: np.ndarray,
+        lb: np.ndarray,
+        ub: np.ndarray,
+        A: np.ndarray,
+        lbA: np.ndarray,
+        ubA: np.ndarray,
+    ) -> None:
         self._n = int(np.shape(H)[0])
         self._bu = np.ascontiguousarray(np.concatenate([ub, ubA]), dtype=float)
         self._bl = np.ascontiguousarray(np.concatenate([lb, lbA]), dtype=float)
@@ -118,7 +128,15 @@ class DaqpQP(DenseQP):
         self._model.settings = {"iter_limit": self.max_iterations}
         self._is_setup = True
 
-    def update(self, H=None, f=None, lb=None, ub=None, lbA=None, ubA=None):  # type: ignore[no-untyped-def]
+    def update(
+        self,
+        H: np.ndarray | None = None,
+        f: np.ndarray | None = None,
+        lb: np.ndarray | None = None,
+        ub: np.ndarray | None = None,
+        lbA: np.ndarray | None = None,
+        ubA: np.ndarray | None = None,
+    ) -> None:
         n = self._n
         if ub is not None:
             self._bu[:n] = ub
@@ -170,13 +188,22 @@ class OsqpQP(DenseQP):
     def __init__(self, max_iterations: int = 4000, eps: float = 1e-5) -> None:
         super().__init__(max_iterations)
         self.eps = eps
-        self._solver = None
+        self._solver: Any = None
         self._triu: tuple[np.ndarray, np.ndarray] = (np.zeros(0, int), np.zeros(0, int))
         self._l = np.zeros(0)
         self._u = np.zeros(0)
         self._n = 0
 
-    def setup(self, H, f, lb, ub, A, lbA, ubA):  # type: ignore[no-untyped-def]
+    def setup(
+        self,
+        H: np.ndarray,
+        f: np.ndarray,
+        lb: np.ndarray,
+        ub: np.ndarray,
+        A: np.ndarray,
+        lbA: np.ndarray,
+        ubA: np.ndarray,
+    ) -> None:
         import osqp
         from scipy import sparse
 
@@ -206,7 +233,15 @@ class OsqpQP(DenseQP):
         )
         self._is_setup = True
 
-    def update(self, H=None, f=None, lb=None, ub=None, lbA=None, ubA=None):  # type: ignore[no-untyped-def]
+    def update(
+        self,
+        H: np.ndarray | None = None,
+        f: np.ndarray | None = None,
+        lb: np.ndarray | None = None,
+        ub: np.ndarray | None = None,
+        lbA: np.ndarray | None = None,
+        ubA: np.ndarray | None = None,
+    ) -> None:
         n = self._n
         if lb is not None:
             self._l[:n] = lb
@@ -225,10 +260,10 @@ class OsqpQP(DenseQP):
             kwargs["l"] = self._l
             kwargs["u"] = self._u
         if kwargs:
-            self._solver.update(**kwargs)  # type: ignore[attr-defined]
+            self._solver.update(**kwargs)
 
     def solve(self) -> QPResult:
-        res = self._solver.solve(raise_error=False)  # type: ignore[attr-defined]
+        res = self._solver.solve(raise_error=False)
         status = str(res.info.status)
         solved = status in ("solved", "solved inaccurate")
         x = res.x if res.x is not None else np.full(self._n, np.nan)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import platform
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from importlib.metadata import PackageNotFoundError, version
 from typing import Any
 
@@ -65,9 +65,11 @@ def run_controller(
     metrics : dict
         :func:`rkmpc.analysis.metrics.lap_metrics` of the run.
     """
-    controller = make_controller(
-        spec.controller, scenario.reference, scenario.vehicle, **(controller_options or {})
-    )
+    if controller_options is None:
+        controller_options = dict(
+            vehicle_preset(scenario.vehicle_name).controller_options.get(spec.controller, {})
+        )
+    controller = make_controller(spec.controller, scenario.reference, scenario.vehicle, **controller_options)
     plant = build_plant(scenario, spec)
     result = simulate(
         plant,
@@ -101,7 +103,7 @@ def run_record(scenario: Scenario, specs: Sequence[RunSpec]) -> dict[str, Any]:
                 "controller": s.controller,
                 "laps": s.laps,
                 "seed": s.seed,
-                "noise": None if s.noise is None else vars(s.noise),
+                "noise": None if s.noise is None else asdict(s.noise),
             }
             for s in specs
         ],

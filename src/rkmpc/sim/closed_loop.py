@@ -167,9 +167,11 @@ def simulate(
         cfg.max_time if cfg.max_time is not None else 3.0 * cfg.laps * reference.profile.lap_time + 10.0
     )
     goal = cfg.laps * length
-    max_steps = int(math.ceil(max_time / dt)) + 1
+    max_steps = math.ceil(max_time / dt) + 1
     log = StepLog(log_columns(plant.STATE_NAMES), capacity=min(max_steps, 20000))
 
+    names = plant.STATE_NAMES
+    pose_index = (names.index("x"), names.index("y"), names.index("yaw"))
     s_prev = s0
     s_track: float | None = None
     progress = 0.0
@@ -182,63 +184,46 @@ def simulate(
         if not np.all(np.isfinite(state)):
             outcome = "diverged"
             break
-        # Errors against the reference path; progress unwrapped across the start line.
-        true_x, true_y, true_yaw = float(state[0]), float(state[1]), float(state[2])
+        # Errors of the true pose against the reference path; progress unwrapped across the line.
+        true_x, true_y, true_yaw = (float(state[i]) for i in pose_index)
         proj = path.project(true_x, true_y, s_prev)
-        ds = proj.s - s_prev
-        if ds < -0.5 * length:
-            ds += length
-        elif ds > 0.5 * length:
-            ds -= length
-        new_progress = progress + ds
-        if new_progress >= (len(crossings) + 1) * length and len(log) > 0:
+        ds = (proj.s - s_prev + 0.5 * length) % length - 0.5 * length
+        lap_goal = (len(crossings) + 1) * length
+        if progress + ds >= lap_goal and len(log) > 0:
             # Interpolate the line-crossing time between the previous and this step.
-            frac = ((len(crossings) + 1) * length - progress) / max(ds, 1e-12)
-            crossings.append(t - dt + frac * dt)
-        progress = new_progress
+            crossings.append(t - dt + dt * (lap_goal - progress) / max(ds, 1e-12))
+        progress += ds
         s_prev = proj.s
-        s_track, _lat_track, margin = track.boundary_offsets(true_x, true_y, s_track)
+        s_track, _, margin = track.boundary_offsets(true_x, true_y, s_track)
         heading_error = (true_yaw - float(proj.heading) + math.pi) % (2 * math.pi) - math.pi
         if progress >= goal:
             outcome = "completed"
             break
-        if margin < 0.0:
-            outcome = "off_track"
-            _append(
-                log,
-                t,
-                proj.s,
-                progress,
-                obs,
-                state,
-                None,
-                plant,
-                reference,
-                proj.lateral,
-                heading_error,
-                margin,
-                controller,
-                wheelbase,
+        on_track = margin >= 0.0
+        command = controller.step(obs) if on_track else None
+        if command is None:
+            cmd = (math.nan, math.nan, math.nan, math.nan)
+        else:
+            info = controller.info
+            cmd = (command.speed, command.steer, info.solve_time_s, _STATUS_CODES.get(info.status, 2.0))
+        log.append(
+            np.concatenate(
+                [
+                    (t, proj.s, progress),
+                    obs.as_array(),
+                    state,
+                    cmd[:2],
+                    (plant.wheel_angle,),
+                    _reference_row(reference, proj.s),
+                    (proj.lateral, heading_error, margin),
+                    cmd[2:],
+                ]
             )
-            break
-        command = controller.step(obs)
-        _append(
-            log,
-            t,
-            proj.s,
-            progress,
-            obs,
-            state,
-            command,
-            plant,
-            reference,
-            proj.lateral,
-            heading_error,
-            margin,
-            controller,
-            wheelbase,
         )
-        plant.step(command, dt)
+        if not on_track:
+            outcome = "off_track"
+            break
+        plant.step(command, dt)  # type: ignore[arg-type]
         if on_step is not None:
             on_step(t, progress / length)
     lap_times = list(np.diff([0.0, *crossings]).astype(float)) if crossings else []
@@ -254,50 +239,14 @@ def simulate(
     )
 
 
-def _append(
-    log,
-    t,
-    s,
-    progress,
-    obs,
-    state,
-    command,
-    plant,
-    reference,
-    lateral,
-    heading_error,  # type: ignore[no-untyped-def]
-    margin,
-    controller,
-    wheelbase,
-) -> None:
+def _reference_row(reference: Reference, s: float) -> tuple[float, float, float, float, float]:
+    """``(x_r, y_r, theta_r, v_r, delta_r)`` of the reference at arc length ``s``."""
     path = reference.path
     pos = path.position(s)
-    if command is None:
-        cmd = (math.nan, math.nan)
-        solve, status = math.nan, math.nan
-    else:
-        cmd = (command.speed, command.steer)
-        solve = controller.info.solve_time_s
-        status = _STATUS_CODES.get(controller.info.status, 2.0)
-    row = np.concatenate(
-        [
-            [t, s, progress],
-            obs.as_array(),
-            state,
-            cmd,
-            [
-                plant.wheel_angle,
-                float(pos[0]),
-                float(pos[1]),
-                float(path.heading(s)),
-                float(reference.profile.speed(s)),
-                math.atan(wheelbase * float(path.curvature(s))),
-                lateral,
-                heading_error,
-                margin,
-                solve,
-                status,
-            ],
-        ]
+    return (
+        float(pos[0]),
+        float(pos[1]),
+        float(path.heading(s)),
+        float(reference.profile.speed(s)),
+        math.atan(reference.wheelbase * float(path.curvature(s))),
     )
-    log.append(row)

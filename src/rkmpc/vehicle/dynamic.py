@@ -214,16 +214,34 @@ class DynamicPlant(ActuatedPlant):
             hh = 0.5 * h
             k1 = rhs(yaw, v, beta, r, delta, v_cmd, d_cmd, mu)
             k2 = rhs(
-                yaw + hh * k1[2], v + hh * k1[3], beta + hh * k1[4], r + hh * k1[5], delta + hh * k1[6],
-                v_cmd, d_cmd, mu,
+                yaw + hh * k1[2],
+                v + hh * k1[3],
+                beta + hh * k1[4],
+                r + hh * k1[5],
+                delta + hh * k1[6],
+                v_cmd,
+                d_cmd,
+                mu,
             )
             k3 = rhs(
-                yaw + hh * k2[2], v + hh * k2[3], beta + hh * k2[4], r + hh * k2[5], delta + hh * k2[6],
-                v_cmd, d_cmd, mu,
+                yaw + hh * k2[2],
+                v + hh * k2[3],
+                beta + hh * k2[4],
+                r + hh * k2[5],
+                delta + hh * k2[6],
+                v_cmd,
+                d_cmd,
+                mu,
             )
             k4 = rhs(
-                yaw + h * k3[2], v + h * k3[3], beta + h * k3[4], r + h * k3[5], delta + h * k3[6],
-                v_cmd, d_cmd, mu,
+                yaw + h * k3[2],
+                v + h * k3[3],
+                beta + h * k3[4],
+                r + h * k3[5],
+                delta + h * k3[6],
+                v_cmd,
+                d_cmd,
+                mu,
             )
             h6 = h / 6.0
             x += h6 * (k1[0] + 2.0 * (k2[0] + k3[0]) + k4[0])

@@ -163,8 +163,7 @@ class FrictionChange(FrictionSchedule):
             raise ParameterError(f"FrictionChange.factor must be finite and > 0, got {self.factor!r}")
         if math.isnan(self.start_time) or math.isnan(self.end_time) or self.end_time <= self.start_time:
             raise ParameterError(
-                "FrictionChange needs start_time < end_time, "
-                f"got {self.start_time!r}, {self.end_time!r}"
+                f"FrictionChange needs start_time < end_time, got {self.start_time!r}, {self.end_time!r}"
             )
 
     def __call__(self, time: float, x: float, y: float) -> float:
