@@ -143,7 +143,8 @@ class KinematicMPCProblem:
         self.steer_step_max = vehicle.steering.max_rate * config.dt
         self.u_min = np.array([vehicle.drive.min_speed, -vehicle.steering.max_angle])
         self.u_max = np.array([vehicle.drive.max_speed, vehicle.steering.max_angle])
-        self._tril = np.tril(np.ones((n, n), dtype=bool))
+        # Causality mask: input i only affects states after it.
+        self._causal = np.tril(np.ones((n, n)))[:, None, :, None]
 
     def prediction_matrices(
         self, theta_r: np.ndarray, v_r: np.ndarray, delta_r: np.ndarray
@@ -166,12 +167,14 @@ class KinematicMPCProblem:
         A, B = linearize_discrete(theta_r, v_r, delta_r, self.vehicle.wheelbase, self.config.dt)
         ca = np.cumsum(A[:, 0, 2])
         cb = np.cumsum(A[:, 1, 2])
-        G = np.empty((n, n, 3, 2))
-        G[:, :, 0, :] = B[None, :, 0, :] + (ca[:, None] - ca[None, :])[..., None] * B[None, :, 2, :]
-        G[:, :, 1, :] = B[None, :, 1, :] + (cb[:, None] - cb[None, :])[..., None] * B[None, :, 2, :]
-        G[:, :, 2, :] = B[None, :, 2, :]
-        G[~self._tril] = 0.0
-        Gamma = G.transpose(0, 2, 1, 3).reshape(3 * n, 2 * n)
+        # Block (k, i) of Gamma maps input i to state k+1: B_i plus the heading column sums.
+        G = np.empty((n, 3, n, 2))
+        B2 = B[:, 2, :]
+        G[:, 0] = B[:, 0, :] + (ca[:, None] - ca)[:, :, None] * B2
+        G[:, 1] = B[:, 1, :] + (cb[:, None] - cb)[:, :, None] * B2
+        G[:, 2] = B2
+        G *= self._causal
+        Gamma = G.reshape(3 * n, 2 * n)
         Phi = np.zeros((n, 3, 3))
         Phi[:, 0, 0] = 1.0
         Phi[:, 1, 1] = 1.0
