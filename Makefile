@@ -3,7 +3,7 @@ PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 
-.PHONY: demo test lint bench tracks-table clean
+.PHONY: demo test lint bench tracks-table learning-table clean
 
 # PyTorch first and pinned exactly: a looser pin pulls a multi-gigabyte CUDA build.
 $(BIN)/python:
@@ -32,6 +32,9 @@ bench: $(VENV)/.installed
 
 tracks-table: $(VENV)/.installed
 	$(BIN)/python benchmarks/tracks_table.py --out runs/tracks
+
+learning-table: $(VENV)/.installed
+	$(BIN)/python benchmarks/learning_table.py --out runs/learning
 
 clean:
 	rm -rf runs .pytest_cache .mypy_cache .ruff_cache

@@ -88,3 +88,48 @@ def test_run_on_shared_track(tmp_path, shared_tracks, track):
     assert metrics["config"]["scenario"]["scale"] == 0.1
     # The default speed profile puts the car in the dynamic regime.
     assert metrics["lateral_accel_max_m_s2"] >= 4.0
+
+
+def test_collect_train_run_learned(tmp_path):
+    data = tmp_path / "data.npz"
+    assert main(["collect", "--track", "oval", "--laps", "1", "--out", str(data)]) == 0
+    model = tmp_path / "res.rkm"
+    assert (
+        main(["train", "--data", str(data), "--kind", "residual", "--epochs", "3", "--out", str(model)]) == 0
+    )
+    ident = tmp_path / "id.json"
+    assert main(["train", "--data", str(data), "--kind", "identified", "--out", str(ident)]) == 0
+    out = tmp_path / "cmp"
+    code = main(
+        [
+            "compare",
+            "--track",
+            "oval",
+            "--controllers",
+            "lmpc,lmpc-id,rkmpc",
+            "--model",
+            f"rkmpc={model}",
+            "--model",
+            f"lmpc-id={ident}",
+            "--out",
+            str(out),
+        ]
+    )
+    assert code == 0
+    results = json.loads((out / "results.json").read_text())
+    assert set(results["controllers"]) == {"lmpc", "lmpc-id", "rkmpc"}
+
+
+def test_model_of_the_wrong_kind_is_refused(tmp_path, capsys):
+    data = tmp_path / "data.npz"
+    assert main(["collect", "--track", "oval", "--laps", "1", "--out", str(data)]) == 0
+    model = tmp_path / "paper.rkm"
+    assert main(["train", "--data", str(data), "--kind", "paper", "--epochs", "2", "--out", str(model)]) == 0
+    code = main(["run", "--controller", "rkmpc", "--model", str(model), "--out", str(tmp_path / "o")])
+    assert code == 2
+    assert "paper" in capsys.readouterr().err
+
+
+def test_learned_controller_without_model(tmp_path, capsys):
+    assert main(["run", "--controller", "rkmpc", "--out", str(tmp_path / "o")]) == 2
+    assert "--model" in capsys.readouterr().err

@@ -1,4 +1,4 @@
-"""Command line: ``rkmpc run``, ``rkmpc compare``, ``rkmpc tracks``."""
+"""Command line: ``rkmpc run | compare | collect | train | tracks``."""
 
 from __future__ import annotations
 
@@ -24,6 +24,13 @@ def _add_scenario_args(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, default=0, help="seed of every random choice (noise)")
     parser.add_argument("--noise", action="store_true", help="add measurement noise to the observations")
     parser.add_argument("--out", required=True, type=Path, help="output folder")
+    parser.add_argument(
+        "--model",
+        action="append",
+        default=[],
+        metavar="[NAME=]PATH",
+        help="model file of a learned controller (rkmpc, rkmpc-paper, kmpc, lmpc-id); repeat as NAME=PATH",
+    )
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -38,6 +45,24 @@ def build_parser() -> argparse.ArgumentParser:
     compare = sub.add_parser("compare", help="drive several controllers and tabulate them")
     compare.add_argument("--controllers", default="pp,lmpc", help="comma-separated controller names")
     _add_scenario_args(compare)
+    collect = sub.add_parser("collect", help="record on-track (or random-excitation) data")
+    collect.add_argument("--controller", default="lmpc", choices=["pp", "lmpc"])
+    collect.add_argument(
+        "--excitation",
+        type=int,
+        default=0,
+        metavar="N",
+        help="instead: N random-excitation samples in open space (for KMPC)",
+    )
+    _add_scenario_args(collect)
+    collect.set_defaults(laps=2)
+    train = sub.add_parser("train", help="train a model from a data set")
+    train.add_argument("--data", required=True, type=Path)
+    train.add_argument("--kind", required=True, choices=["residual", "paper", "koopman", "identified"])
+    train.add_argument("--vehicle", default="f1tenth", choices=["f1tenth", "fullsize"])
+    train.add_argument("--epochs", type=int, default=None)
+    train.add_argument("--seed", type=int, default=0)
+    train.add_argument("--out", required=True, type=Path, help="model file")
     sub.add_parser("tracks", help="list the built-in tracks")
     return parser
 
@@ -48,6 +73,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         if args.command == "tracks":
             return _cmd_tracks()
+        if args.command == "collect":
+            return _cmd_collect(args)
+        if args.command == "train":
+            return _cmd_train(args)
         names = [args.controller] if args.command == "run" else _split(args.controllers)
         return _cmd_compare(args, names, single=args.command == "run")
     except (RkmpcError, ValueError, OSError) as exc:
@@ -63,6 +92,75 @@ def _split(text: str) -> list[str]:
     if unknown or not names:
         raise ValueError(f"unknown controller(s) {unknown}; known: {sorted(CONTROLLERS)}")
     return names
+
+
+def _model_options(names: list[str], specs: list[str]) -> dict[str, dict[str, Any]]:
+    """Controller options with the loaded models, from ``--model [NAME=]PATH`` arguments."""
+    from rkmpc.control.factory import MODEL_KIND
+    from rkmpc.learning.model_io import load_model
+
+    paths: dict[str, str] = {}
+    for spec in specs:
+        name, sep, path = spec.partition("=")
+        if not sep:
+            learned = [n for n in names if n in MODEL_KIND]
+            if len(learned) != 1:
+                raise ValueError("--model PATH needs exactly one learned controller; use NAME=PATH")
+            name, path = learned[0], spec
+        paths[name] = path
+    options: dict[str, dict[str, Any]] = {}
+    for name in names:
+        if name in MODEL_KIND:
+            if name not in paths:
+                raise ValueError(f"controller {name!r} needs --model {name}=PATH")
+            options[name] = {"model": load_model(paths[name], MODEL_KIND[name])}
+    return options
+
+
+def _cmd_collect(args: argparse.Namespace) -> int:
+    from rkmpc.experiments.runner import DEFAULT_NOISE
+    from rkmpc.learning.collect import collect, collect_excitation
+    from rkmpc.scenario import load_scenario
+
+    scenario = load_scenario(args.track, raceline=args.raceline, scale=args.scale, vehicle=args.vehicle)
+    noise = DEFAULT_NOISE if args.noise else None
+    if args.excitation:
+        data = collect_excitation(scenario, n_samples=args.excitation, seed=args.seed)
+    else:
+        data = collect(scenario, controller=args.controller, laps=args.laps, seed=args.seed, noise=noise)
+    data.save(args.out)
+    print(f"{len(data)} transitions -> {args.out}")
+    return 0
+
+
+def _cmd_train(args: argparse.Namespace) -> int:
+    from rkmpc.learning.dataset import TransitionDataset
+    from rkmpc.scenario import vehicle_preset
+
+    data = TransitionDataset.load(args.data)
+    wheelbase = vehicle_preset(args.vehicle).params().wheelbase
+    if args.kind == "identified":
+        from rkmpc.learning.identification import identify
+        from rkmpc.learning.model_io import save_identified
+
+        ident = identify(data, wheelbase)
+        save_identified(ident, args.out, {"data_hash": data.content_hash(), "data_metadata": data.metadata})
+        print(f"{ident} -> {args.out}")
+        return 0
+    from rkmpc.learning.augmentation import AugmentConfig
+    from rkmpc.learning.pipeline import TrainConfig, default_model_options, train_model
+
+    options = default_model_options(args.kind, seed=args.seed)
+    if args.epochs is not None:
+        options["epochs"] = args.epochs
+    config = TrainConfig(kind=args.kind, augment=AugmentConfig(seed=args.seed), model=options)
+    model, report = train_model(data, wheelbase, config)
+    model.save(args.out, metadata=model.metadata_)
+    print(
+        f"{args.kind} model: {report.raw_count} raw -> {report.augmented_count} augmented samples, "
+        f"{report.fit_time_s:.1f} s -> {args.out}"
+    )
+    return 0
 
 
 def _cmd_tracks() -> int:
@@ -91,6 +189,7 @@ def _cmd_compare(args: argparse.Namespace, names: list[str], *, single: bool) ->
         RunSpec(controller=n, laps=args.laps, seed=args.seed, noise=DEFAULT_NOISE if args.noise else None)
         for n in names
     ]
+    options = _model_options(names, args.model)
     out: Path = args.out
     out.mkdir(parents=True, exist_ok=True)
     results: dict[str, dict[str, Any]] = {}
@@ -111,7 +210,9 @@ def _cmd_compare(args: argparse.Namespace, names: list[str], *, single: bool) ->
             def on_step(_t: float, laps_done: float, task: Any = task) -> None:
                 progress.update(task, completed=min(laps_done, goal))
 
-            result, metrics = run_controller(scenario, spec, on_step=on_step)
+            result, metrics = run_controller(
+                scenario, spec, controller_options=options.get(spec.controller), on_step=on_step
+            )
             progress.remove_task(task)
             results[spec.controller] = metrics
             logs[spec.controller] = result.log

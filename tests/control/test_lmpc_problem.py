@@ -67,3 +67,16 @@ def test_config_validation():
         LMPCConfig(horizon=1)
     with pytest.raises(ParameterError, match="heading_weight"):
         LMPCConfig(heading_weight=-1.0)
+
+
+def test_general_condense_matches_kinematic_fast_path():
+    from rkmpc.control.lmpc import condense
+
+    cfg = LMPCConfig(horizon=10)
+    prob = KinematicMPCProblem(cfg, f1tenth())
+    theta, v, delta = _reference(10, seed=5)
+    Phi, Gamma = prob.prediction_matrices(theta, v, delta)
+    A, B = linearize_discrete(theta, v, delta, f1tenth().wheelbase, cfg.dt)
+    Phi2, Gamma2 = condense(A, B)
+    np.testing.assert_allclose(Phi2, Phi, atol=1e-12)
+    np.testing.assert_allclose(Gamma2, Gamma, atol=1e-12)

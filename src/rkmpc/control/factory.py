@@ -6,8 +6,11 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from rkmpc.control.base import Controller
+from rkmpc.control.koopman_mpc import KoopmanMPC
 from rkmpc.control.lmpc import LinearMPC
+from rkmpc.control.lmpc_id import IdentifiedLMPC
 from rkmpc.control.pure_pursuit import PurePursuit
+from rkmpc.control.rkmpc import PaperResidualKoopmanMPC, ResidualKoopmanMPC
 from rkmpc.vehicle.params import VehicleParams
 
 if TYPE_CHECKING:
@@ -19,6 +22,18 @@ ControllerFactory = Callable[..., Controller]
 CONTROLLERS: dict[str, ControllerFactory] = {
     "pp": PurePursuit,
     "lmpc": LinearMPC,
+    "lmpc-id": IdentifiedLMPC,
+    "kmpc": KoopmanMPC,
+    "rkmpc": ResidualKoopmanMPC,
+    "rkmpc-paper": PaperResidualKoopmanMPC,
+}
+
+#: Controllers that need a learned or identified ``model=`` option, and its kind.
+MODEL_KIND: dict[str, str] = {
+    "lmpc-id": "identified",
+    "kmpc": "koopman",
+    "rkmpc": "residual",
+    "rkmpc-paper": "paper",
 }
 
 
@@ -35,7 +50,10 @@ def make_controller(name: str, reference: Reference, vehicle: VehicleParams, **o
     Parameters
     ----------
     name : str
-        Registry name: ``"pp"`` (pure pursuit) or ``"lmpc"`` (linear MPC).
+        Registry name: ``"pp"`` (pure pursuit), ``"lmpc"`` (linear MPC),
+        ``"lmpc-id"`` (LMPC with identified servo lag and understeer), ``"kmpc"``
+        (Koopman MPC), ``"rkmpc"`` (residual Koopman MPC) or ``"rkmpc-paper"``
+        (its literal reading). The last four need ``model=``.
     reference : Reference
         Path and speed profile to track.
     vehicle : VehicleParams

@@ -26,7 +26,7 @@ from rkmpc.vehicle.kinematic import linearize_discrete
 from rkmpc.vehicle.params import VehicleParams
 
 if TYPE_CHECKING:
-    from rkmpc.track.reference import Reference
+    from rkmpc.track.reference import Reference, ReferenceHorizon
 
 
 def wrap_angle(angle: float) -> float:
@@ -108,6 +108,61 @@ class LMPCConfig:
             raise ParameterError(f"LMPCConfig.max_iterations must be >= 1, got {self.max_iterations}")
 
 
+@dataclass(frozen=True)
+class Prediction:
+    """What the MPC predicted at its last step (for controllers built on top of it).
+
+    Parameters
+    ----------
+    xi0 : numpy.ndarray
+        Initial deviation from the reference, shape (nx,).
+    Phi, Gamma : numpy.ndarray
+        Condensed prediction of the deviations, shapes (N*nx, nx) and (N*nx, 2N).
+    u_ref : numpy.ndarray
+        Reference inputs, shape (N, 2).
+    plan : numpy.ndarray
+        Planned absolute inputs, shape (N, 2).
+    solved : bool
+        Whether the QP was solved.
+    reference : ReferenceHorizon
+        The reference horizon the step tracked.
+    """
+
+    xi0: np.ndarray
+    Phi: np.ndarray
+    Gamma: np.ndarray
+    u_ref: np.ndarray
+    plan: np.ndarray
+    solved: bool
+    reference: ReferenceHorizon
+
+
+def condense(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Condensed prediction of a time-varying linear system.
+
+    For ``xi_{k+1} = A_k xi_k + B_k u_k``, returns ``Phi`` (N*nx, nx) and block
+    lower-triangular ``Gamma`` (N*nx, N*nu) with ``[xi_1; ...; xi_N] = Phi xi_0 + Gamma U``.
+
+    Parameters
+    ----------
+    A : numpy.ndarray
+        Shape (N, nx, nx).
+    B : numpy.ndarray
+        Shape (N, nx, nu).
+    """
+    n, nx, nu = B.shape
+    Phi = np.empty((n, nx, nx))
+    Gamma = np.zeros((n, nx, n, nu))
+    prev_phi = np.eye(nx)
+    for k in range(n):
+        prev_phi = A[k] @ prev_phi
+        Phi[k] = prev_phi
+        if k:
+            Gamma[k, :, :k, :] = np.einsum("ij,jkl->ikl", A[k], Gamma[k - 1, :, :k, :])
+        Gamma[k, :, k, :] = B[k]
+    return Phi.reshape(n * nx, nx), Gamma.reshape(n * nx, n * nu)
+
+
 class KinematicMPCProblem:
     """The condensed QP of MPC1 for one reference horizon (numbers only, no solver).
 
@@ -120,16 +175,20 @@ class KinematicMPCProblem:
         Weights and horizon.
     vehicle : VehicleParams
         Wheelbase and input limits.
+    extra_states : int
+        States appended after ``[x, y, theta]`` by a richer model (unweighted).
     """
 
-    def __init__(self, config: LMPCConfig, vehicle: VehicleParams) -> None:
+    def __init__(self, config: LMPCConfig, vehicle: VehicleParams, extra_states: int = 0) -> None:
         n = config.horizon
         self.config = config
         self.vehicle = vehicle
         self.n = n
-        w_state = np.array([config.position_weight, config.position_weight, config.heading_weight])
+        w_state = np.array(
+            [config.position_weight, config.position_weight, config.heading_weight] + [0.0] * extra_states
+        )
         q = np.tile(w_state, n)
-        q[-3:] *= config.terminal_factor
+        q[-len(w_state) :] *= config.terminal_factor
         self.q_diag = q
         self.r_diag = np.tile([config.speed_weight, config.steer_weight], n)
         self.w_rate = np.tile([config.speed_rate_weight, config.steer_rate_weight], n)
@@ -243,6 +302,8 @@ class LinearMPC(Controller):
     """
 
     name = "lmpc"
+    #: Model states after ``[x, y, theta]`` (subclasses with richer models).
+    extra_states = 0
 
     def __init__(
         self, reference: Reference, vehicle: VehicleParams, config: LMPCConfig | None = None
@@ -251,7 +312,7 @@ class LinearMPC(Controller):
         self.reference = reference
         self.vehicle = vehicle
         self.config = config if config is not None else LMPCConfig()
-        self.problem = KinematicMPCProblem(self.config, vehicle)
+        self.problem = KinematicMPCProblem(self.config, vehicle, extra_states=self.extra_states)
         self._qp = make_qp(self.config.solver, max_iterations=self.config.max_iterations)
         self._s_hint: float | None = None
         self._u_prev: np.ndarray | None = None
@@ -259,6 +320,8 @@ class LinearMPC(Controller):
         self._plan_age = 0
         #: Last predicted absolute input sequence, shape (N, 2), and reference horizon.
         self.last_plan: np.ndarray | None = None
+        #: The prediction of the last step, or None before the first.
+        self.last_prediction: Prediction | None = None
 
     def _reset(self) -> None:
         self._s_hint = None
@@ -266,6 +329,7 @@ class LinearMPC(Controller):
         self._plan = None
         self._plan_age = 0
         self.last_plan = None
+        self.last_prediction = None
 
     def solve_plan(self, observation: Observation) -> tuple[np.ndarray, np.ndarray, bool, str]:
         """Solve MPC1 for this observation without applying anything.
@@ -286,19 +350,11 @@ class LinearMPC(Controller):
         proj = self.reference.project(observation.x, observation.y, self._s_hint)
         self._s_hint = proj.s
         ref = self.reference.horizon(proj.s, n, cfg.dt)
-        theta_r = ref.theta[:n]
-        u_ref = np.column_stack([ref.v[:n], ref.delta[:n]])
+        u_ref = self._reference_inputs(ref)
         if self._u_prev is None:
             # First step: the car is taken to hold its speed and the feed-forward angle.
             self._u_prev = np.array([observation.speed, u_ref[0, 1]])
-        xi0 = np.array(
-            [
-                observation.x - ref.x[0],
-                observation.y - ref.y[0],
-                wrap_angle(observation.yaw - ref.theta[0]),
-            ]
-        )
-        Phi, Gamma = self.problem.prediction_matrices(theta_r, ref.v[:n], ref.delta[:n])
+        xi0, Phi, Gamma = self._prediction(observation, ref, u_ref)
         H, f, lb, ub, lbA, ubA = self.problem.qp_numbers(xi0, u_ref, self._u_prev, Phi, Gamma)
         if not self._qp.is_setup:
             self._qp.setup(H, f, lb, ub, self.problem.A_rate, lbA, ubA)
@@ -307,7 +363,30 @@ class LinearMPC(Controller):
         result = self._qp.solve()
         solved = result.solved and bool(np.all(np.isfinite(result.x)))
         plan = u_ref + result.x.reshape(n, 2) if solved else u_ref.copy()
+        self.last_prediction = Prediction(
+            xi0=xi0, Phi=Phi, Gamma=Gamma, u_ref=u_ref, plan=plan, solved=solved, reference=ref
+        )
         return plan, u_ref, solved, result.status
+
+    def _reference_inputs(self, ref: ReferenceHorizon) -> np.ndarray:
+        """Reference inputs ``[v_r, delta_r]`` over the horizon, shape (N, 2)."""
+        n = self.config.horizon
+        return np.column_stack([ref.v[:n], ref.delta[:n]])
+
+    def _prediction(
+        self, observation: Observation, ref: ReferenceHorizon, u_ref: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Initial deviation and condensed prediction ``(xi0, Phi, Gamma)`` of the model."""
+        n = self.config.horizon
+        xi0 = np.array(
+            [
+                observation.x - ref.x[0],
+                observation.y - ref.y[0],
+                wrap_angle(observation.yaw - ref.theta[0]),
+            ]
+        )
+        Phi, Gamma = self.problem.prediction_matrices(ref.theta[:n], u_ref[:, 0], u_ref[:, 1])
+        return xi0, Phi, Gamma
 
     def _step(self, observation: Observation) -> tuple[Command, str, str]:
         plan, u_ref, solved, status = self.solve_plan(observation)

@@ -65,10 +65,8 @@ def run_controller(
     metrics : dict
         :func:`rkmpc.analysis.metrics.lap_metrics` of the run.
     """
-    if controller_options is None:
-        controller_options = dict(
-            vehicle_preset(scenario.vehicle_name).controller_options.get(spec.controller, {})
-        )
+    preset = vehicle_preset(scenario.vehicle_name).controller_options.get(spec.controller, {})
+    controller_options = {**preset, **(controller_options or {})}
     controller = make_controller(spec.controller, scenario.reference, scenario.vehicle, **controller_options)
     plant = build_plant(scenario, spec)
     result = simulate(

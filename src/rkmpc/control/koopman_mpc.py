@@ -1,0 +1,135 @@
+"""KMPC: a linear MPC on a Koopman model of the full vehicle dynamics.
+
+The model (trained on random-excitation data, see
+:mod:`rkmpc.learning.excitation`) lifts ``[x, y, theta, speed, yaw_rate,
+wheel_angle]`` with the pose in the car's own frame, and takes the command
+``[v, delta]`` as input. Each step the car is at the local origin, so only the
+lifted initial state and the reference change: the QP's Hessian and constraint
+matrix are fixed at construction and only its gradient and bounds are updated.
+The cost and constraints are the LMPC's (same weights and horizon).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from rkmpc.control.base import Command, Controller, Observation
+from rkmpc.control.lifted import lifted_prediction
+from rkmpc.control.lmpc import KinematicMPCProblem, LMPCConfig
+from rkmpc.control.qp import make_qp
+from rkmpc.control.rkmpc import LiftedModel, reference_in_local_frame
+from rkmpc.vehicle.params import VehicleParams
+
+if TYPE_CHECKING:
+    from rkmpc.track.reference import Reference
+
+#: State features of the KMPC model, pose in the car's frame first.
+KMPC_FEATURES = ("x", "y", "yaw", "speed", "yaw_rate", "steer_angle")
+
+
+def kmpc_features(observation: Observation) -> np.ndarray:
+    """The KMPC model's state at the local origin: ``[0, 0, 0, speed, yaw_rate, steer_angle]``."""
+    return np.array([0.0, 0.0, 0.0, observation.speed, observation.yaw_rate, observation.steer_angle])
+
+
+class KoopmanMPC(Controller):
+    """Linear MPC on a lifted (Koopman) model of the whole car (``kmpc``).
+
+    Parameters
+    ----------
+    reference : Reference
+        Path and speed profile.
+    vehicle : VehicleParams
+        Input limits.
+    model : LiftedModel
+        Lifted linear model on :data:`KMPC_FEATURES` with input the command; its
+        ``C_`` maps the lifted state back to those features.
+    config : LMPCConfig, optional
+        Weights, horizon and solver (the LMPC's by default).
+    """
+
+    name = "kmpc"
+
+    def __init__(
+        self,
+        reference: Reference,
+        vehicle: VehicleParams,
+        model: LiftedModel,
+        config: LMPCConfig | None = None,
+    ) -> None:
+        super().__init__()
+        self.reference = reference
+        self.vehicle = vehicle
+        self.model = model
+        self.config = config if config is not None else LMPCConfig()
+        self.problem = KinematicMPCProblem(self.config, vehicle)
+        n = self.config.horizon
+        self._Mz, self._Mu = lifted_prediction(model.A_, model.B_, model.C_[:3], None, n, first=1)
+        p = self.problem
+        MtQ = self._Mu.T * p.q_diag
+        self._MtQ = MtQ
+        self._H = 2.0 * (MtQ @ self._Mu + np.diag(p.r_diag) + p.DtWD)
+        self._qp = make_qp(self.config.solver, max_iterations=self.config.max_iterations)
+        self._s_hint: float | None = None
+        self._u_prev: np.ndarray | None = None
+        self._plan: np.ndarray | None = None
+        self._plan_age = 0
+
+    def _reset(self) -> None:
+        self._s_hint = None
+        self._u_prev = None
+        self._plan = None
+        self._plan_age = 0
+
+    def _step(self, observation: Observation) -> tuple[Command, str, str]:
+        cfg, p = self.config, self.problem
+        n = cfg.horizon
+        proj = self.reference.project(observation.x, observation.y, self._s_hint)
+        self._s_hint = proj.s
+        ref = self.reference.horizon(proj.s, n, cfg.dt)
+        u_ref = np.column_stack([ref.v[:n], ref.delta[:n]]).ravel()
+        if self._u_prev is None:
+            self._u_prev = np.array([observation.speed, u_ref[1]])
+        x0 = kmpc_features(observation)
+        if not np.all(np.isfinite(x0)):
+            return self._fallback(u_ref, "kmpc needs measured speed, yaw rate and wheel angle")
+        z0 = self.model.lift(x0)
+        local = reference_in_local_frame(ref, observation).ravel()
+        d0 = np.zeros(2 * n)
+        d0[:2] = self._u_prev
+        f = 2.0 * (self._MtQ @ (self._Mz @ z0 - local) - p.r_diag * u_ref - p.D.T @ (p.w_rate * d0))
+        lb = np.tile(p.u_min, n)
+        ub = np.tile(p.u_max, n)
+        ub[0::2] = np.minimum(ub[0::2], u_ref[0::2] + cfg.speed_margin)
+        lb = np.minimum(lb, ub)
+        lbA = -p.steer_step_max + d0[1::2]
+        ubA = p.steer_step_max + d0[1::2]
+        if not self._qp.is_setup:
+            self._qp.setup(self._H, f, lb, ub, p.A_rate, lbA, ubA)
+        else:
+            self._qp.update(f=f, lb=lb, ub=ub, lbA=lbA, ubA=ubA)
+        result = self._qp.solve()
+        if not result.solved or not np.all(np.isfinite(result.x)):
+            return self._fallback(u_ref, f"QP failed: {result.status}")
+        self._plan = result.x.reshape(n, 2)
+        self._plan_age = 0
+        return self._apply(self._plan[0]), "ok", ""
+
+    def _fallback(self, u_ref: np.ndarray, message: str) -> tuple[Command, str, str]:
+        self._plan_age += 1
+        if self._plan is not None and self._plan_age < self.config.horizon:
+            u = self._plan[self._plan_age]
+        else:
+            u = u_ref[:2]
+        return self._apply(np.array(u, dtype=float)), "fallback", message
+
+    def _apply(self, u: np.ndarray) -> Command:
+        u = u.copy()
+        if self._u_prev is not None:
+            step = self.problem.steer_step_max
+            u[1] = min(max(u[1], self._u_prev[1] - step), self._u_prev[1] + step)
+        u = np.clip(u, self.problem.u_min, self.problem.u_max)
+        self._u_prev = u
+        return Command(speed=float(u[0]), steer=float(u[1]))

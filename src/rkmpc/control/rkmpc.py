@@ -1,0 +1,290 @@
+"""Residual Koopman MPC: a linear MPC plus a residual MPC on a lifted model.
+
+Both controllers here keep the paper's structure: the LMPC of
+:mod:`rkmpc.control.lmpc` computes the baseline ``U_lmpc`` on the kinematic
+model; a second, residual MPC on a learned lifted linear (Koopman) model
+computes the correction ``dU``; the car receives ``U_lmpc + dU`` clipped to its
+limits. They differ in what the learned model describes (see ``docs/method.md``).
+
+``rkmpc`` (default): the residual sits in the kinematic model's input channel.
+The lifted model, on features of the measured speed, wheel angle and yaw rate,
+predicts the input ``U_p`` that the kinematic model needs to reproduce the
+car's motion when ``U`` is applied (so ``dU_label = U - U_p``). The residual
+MPC chooses ``dU`` so that the kinematic model driven by the predicted ``U_p``
+follows the reference, around the LMPC's own linearisation.
+
+``rkmpc-paper``: the literal reading. The lifted state is the pose in the car's
+local frame, ``z = [x, y, theta, psi(x, y, theta)]``, driven by the control
+residual ``dU``; the residual MPC tracks the reference in the local frame with
+``mu dv^2 + eps ddelta^2`` on the correction (paper Eq. MPC2). Its model is time
+invariant, so the QP's Hessian is fixed at construction and only the gradient
+changes.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Protocol
+
+import numpy as np
+
+from rkmpc.control.base import Command, Controller, Observation
+from rkmpc.control.lifted import lifted_prediction
+from rkmpc.control.lmpc import LinearMPC, LMPCConfig, Prediction
+from rkmpc.control.qp import make_qp
+from rkmpc.errors import ParameterError
+from rkmpc.vehicle.params import VehicleParams
+
+if TYPE_CHECKING:
+    from rkmpc.track.reference import Reference, ReferenceHorizon
+
+
+class LiftedModel(Protocol):
+    """What the residual MPCs need of a learned model (``rkmpc.learning.koopman.KoopmanModel``)."""
+
+    A_: np.ndarray
+    B_: np.ndarray
+    C_: np.ndarray
+    D_: np.ndarray
+
+    def lift(self, X: np.ndarray) -> np.ndarray: ...
+
+
+#: Observation columns the default residual model takes: speed, yaw rate, wheel angle.
+RESIDUAL_FEATURES = ("speed", "yaw_rate", "steer_angle")
+
+
+def residual_features(observation: Observation) -> np.ndarray:
+    """``[speed, yaw_rate, steer_angle]`` of an observation, shape (3,)."""
+    return np.array([observation.speed, observation.yaw_rate, observation.steer_angle])
+
+
+@dataclass(frozen=True)
+class ResidualMPCConfig:
+    """Weights and bounds of the residual MPC (paper Eq. MPC2).
+
+    Parameters
+    ----------
+    position_weight, heading_weight : float
+        Tracking weights of the predicted position and heading errors.
+    speed_weight : float
+        mu: weight of the squared speed correction ``dv^2``.
+    steer_weight : float
+        epsilon: weight of the squared steering correction ``ddelta^2``.
+    max_speed_correction : float
+        Bound on ``|dv|`` (m/s).
+    max_steer_correction : float
+        Bound on ``|ddelta|`` (rad).
+    solver : str
+        QP backend.
+    max_iterations : int
+        QP iteration budget; on failure the LMPC's command is applied alone.
+    """
+
+    position_weight: float = 1.0
+    heading_weight: float = 1.0
+    speed_weight: float = 0.5
+    steer_weight: float = 2.0
+    max_speed_correction: float = 1.0
+    max_steer_correction: float = 0.15
+    solver: str = "daqp"
+    max_iterations: int = 200
+
+    def __post_init__(self) -> None:
+        for name in ("position_weight", "heading_weight", "speed_weight", "steer_weight"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0):
+                raise ParameterError(f"ResidualMPCConfig.{name} must be finite and >= 0, got {value}")
+        if self.speed_weight <= 0 or self.steer_weight <= 0:
+            raise ParameterError("ResidualMPCConfig: speed_weight and steer_weight must be > 0")
+        if not (self.max_speed_correction > 0 and self.max_steer_correction > 0):
+            raise ParameterError("ResidualMPCConfig: correction bounds must be > 0")
+
+
+def reference_in_local_frame(ref: ReferenceHorizon, observation: Observation) -> np.ndarray:
+    """Reference poses ``k = 1..N`` in the car's frame (origin at the car, heading 0), shape (N, 3)."""
+    c, s = math.cos(observation.yaw), math.sin(observation.yaw)
+    dx, dy = ref.x[1:] - observation.x, ref.y[1:] - observation.y
+    heading = ref.theta[1:] - observation.yaw
+    heading = heading - 2.0 * math.pi * np.round(heading[0] / (2.0 * math.pi))
+    return np.column_stack([c * dx + s * dy, -s * dx + c * dy, heading])
+
+
+class _ResidualBase(Controller):
+    """LMPC baseline plus a residual QP; subclasses supply the residual problem."""
+
+    #: Residual MPC settings used when none are given.
+    default_config = ResidualMPCConfig()
+
+    def __init__(
+        self,
+        reference: Reference,
+        vehicle: VehicleParams,
+        model: LiftedModel,
+        config: ResidualMPCConfig | None = None,
+        lmpc_config: LMPCConfig | None = None,
+    ) -> None:
+        super().__init__()
+        self.reference = reference
+        self.vehicle = vehicle
+        self.model = model
+        self.config = config if config is not None else self.default_config
+        self.lmpc = LinearMPC(reference, vehicle, lmpc_config)
+        n = self.lmpc.config.horizon
+        self.horizon = n
+        self._qp = make_qp(self.config.solver, max_iterations=self.config.max_iterations)
+        self._d_max = np.tile([self.config.max_speed_correction, self.config.max_steer_correction], n)
+        self._u_min = np.tile(self.lmpc.problem.u_min, n)
+        self._u_max = np.tile(self.lmpc.problem.u_max, n)
+        w = [self.config.position_weight, self.config.position_weight, self.config.heading_weight]
+        self._q = np.tile(w, n)
+        self._r = np.tile([self.config.speed_weight, self.config.steer_weight], n)
+        self._u_prev: np.ndarray | None = None
+        #: Last correction applied (first step), shape (2,).
+        self.last_correction = np.zeros(2)
+
+    def _reset(self) -> None:
+        self.lmpc.reset()
+        self._u_prev = None
+        self.last_correction = np.zeros(2)
+
+    def _step(self, observation: Observation) -> tuple[Command, str, str]:
+        base = self.lmpc.step(observation)
+        pred = self.lmpc.last_prediction
+        if self.lmpc.info.status != "ok" or pred is None:
+            return (
+                self._apply(np.array([base.speed, base.steer]), np.zeros(2)),
+                "fallback",
+                self.lmpc.info.message,
+            )
+        plan = pred.plan.ravel()
+        try:
+            H, f = self._residual_qp(observation, pred, plan)
+        except FloatingPointError as exc:  # non-finite features: keep the baseline
+            return self._apply(np.array([base.speed, base.steer]), np.zeros(2)), "fallback", str(exc)
+        lb = np.maximum(-self._d_max, self._u_min - plan)
+        ub = np.minimum(self._d_max, self._u_max - plan)
+        # As the LMPC: never faster than the reference speed profile.
+        ub[0::2] = np.minimum(ub[0::2], pred.u_ref[:, 0] - pred.plan[:, 0])
+        lb = np.minimum(lb, ub)
+        empty = np.zeros((0, plan.size))
+        if not self._qp.is_setup:
+            self._qp.setup(H, f, lb, ub, empty, np.zeros(0), np.zeros(0))
+        else:
+            self._qp.update(H=H, f=f, lb=lb, ub=ub)
+        result = self._qp.solve()
+        if not result.solved or not np.all(np.isfinite(result.x)):
+            return self._apply(plan[:2], np.zeros(2)), "fallback", f"residual QP failed: {result.status}"
+        return self._apply(plan[:2], result.x[:2]), "ok", ""
+
+    def _apply(self, base: np.ndarray, correction: np.ndarray) -> Command:
+        u = base + correction
+        if self._u_prev is not None:
+            step = self.lmpc.problem.steer_step_max
+            u[1] = min(max(u[1], self._u_prev[1] - step), self._u_prev[1] + step)
+        u = np.clip(u, self.lmpc.problem.u_min, self.lmpc.problem.u_max)
+        self._u_prev = u
+        self.last_correction = u - base
+        return Command(speed=float(u[0]), steer=float(u[1]))
+
+    def _residual_qp(
+        self, observation: Observation, pred: Prediction, plan: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        raise NotImplementedError
+
+
+class ResidualKoopmanMPC(_ResidualBase):
+    """RKMPC with the residual in the kinematic model's input channel (the default ``rkmpc``).
+
+    Parameters
+    ----------
+    reference : Reference
+        Path and speed profile.
+    vehicle : VehicleParams
+        The car.
+    model : LiftedModel
+        Lifted linear model on :data:`RESIDUAL_FEATURES` with input the applied
+        command and output the nominal input ``U_p`` (``y = C z + D u``).
+    config : ResidualMPCConfig, optional
+        Residual MPC weights and bounds.
+    lmpc_config : LMPCConfig, optional
+        The baseline LMPC's settings (its defaults otherwise).
+    """
+
+    name = "rkmpc"
+
+    def __init__(
+        self,
+        reference: Reference,
+        vehicle: VehicleParams,
+        model: LiftedModel,
+        config: ResidualMPCConfig | None = None,
+        lmpc_config: LMPCConfig | None = None,
+    ) -> None:
+        super().__init__(reference, vehicle, model, config, lmpc_config)
+        # Time invariant: U_p over the horizon = Mz z0 + Mu U, computed once.
+        self._Mz, self._Mu = lifted_prediction(model.A_, model.B_, model.C_, model.D_, self.horizon, first=0)
+
+    def _residual_qp(
+        self, observation: Observation, pred: Prediction, plan: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        x = residual_features(observation)
+        if not np.all(np.isfinite(x)):
+            raise FloatingPointError("rkmpc needs measured speed, yaw rate and wheel angle")
+        z0 = self.model.lift(x)
+        # Kinematic deviations when the car's effective input is U_p(U_lmpc + dU).
+        GM = pred.Gamma @ self._Mu
+        e0 = pred.Phi @ pred.xi0 + pred.Gamma @ (self._Mz @ z0 + self._Mu @ plan - pred.u_ref.ravel())
+        GtQ = GM.T * self._q
+        H = 2.0 * (GtQ @ GM + np.diag(self._r))
+        f = 2.0 * (GtQ @ e0)
+        return H, f
+
+
+class PaperResidualKoopmanMPC(_ResidualBase):
+    """The literal reading of the paper's RKMPC (``rkmpc-paper``).
+
+    Parameters
+    ----------
+    reference : Reference
+        Path and speed profile.
+    vehicle : VehicleParams
+        The car.
+    model : LiftedModel
+        Lifted linear model with state ``[x, y, theta]`` in the local frame and
+        input the control residual ``dU``; ``C`` maps back to the pose.
+    config : ResidualMPCConfig, optional
+        Residual MPC weights and bounds.
+    lmpc_config : LMPCConfig, optional
+        The baseline LMPC's settings.
+    """
+
+    name = "rkmpc-paper"
+    #: The literal model mispredicts the pose, so only heavily weighted corrections keep it on track.
+    default_config = ResidualMPCConfig(heading_weight=5.0, speed_weight=5.0, steer_weight=5000.0)
+
+    def __init__(
+        self,
+        reference: Reference,
+        vehicle: VehicleParams,
+        model: LiftedModel,
+        config: ResidualMPCConfig | None = None,
+        lmpc_config: LMPCConfig | None = None,
+    ) -> None:
+        super().__init__(reference, vehicle, model, config, lmpc_config)
+        C = model.C_[:3]
+        self._Mz, self._Mu = lifted_prediction(model.A_, model.B_, C, None, self.horizon, first=1)
+        self._z0 = np.asarray(model.lift(np.zeros(3)), dtype=float)
+        self._free = self._Mz @ self._z0
+        MtQ = self._Mu.T * self._q
+        # Fixed Hessian: the model is time invariant and starts at the local origin.
+        self._H = 2.0 * (MtQ @ self._Mu + np.diag(self._r))
+        self._MtQ = MtQ
+
+    def _residual_qp(
+        self, observation: Observation, pred: Prediction, plan: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        local = reference_in_local_frame(pred.reference, observation)
+        f = 2.0 * (self._MtQ @ (self._free - local.ravel()))
+        return self._H, f
