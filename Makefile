@@ -28,7 +28,7 @@ test: $(VENV)/.installed-test
 	$(BIN)/python -m pytest
 
 bench: $(VENV)/.installed
-	$(BIN)/python benchmarks/bench_step.py --out runs/bench/step_times.json
+	$(BIN)/python benchmarks/bench_step.py --out runs/bench/step_times.json $(if $(wildcard runs/learning/kmpc_50000_0.rkm),--kmpc-model runs/learning/kmpc_50000_0.rkm)
 
 tracks-table: $(VENV)/.installed
 	$(BIN)/python benchmarks/tracks_table.py --out runs/tracks

@@ -14,19 +14,24 @@ import os
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
-import argparse  # noqa: E402
-from pathlib import Path  # noqa: E402
+import argparse
+from pathlib import Path
+from typing import Any
 
-import numpy as np  # noqa: E402
+import numpy as np
 
-from rkmpc.control.lmpc import LMPCConfig  # noqa: E402
-from rkmpc.experiments.runner import RunSpec, run_controller, versions  # noqa: E402
-from rkmpc.scenario import load_scenario  # noqa: E402
-from rkmpc.sim.log import write_json_atomic  # noqa: E402
+from rkmpc.control.lmpc import LMPCConfig
+from rkmpc.experiments.runner import RunSpec, run_controller, versions
+from rkmpc.learning.collect import collect
+from rkmpc.learning.identification import identify
+from rkmpc.learning.koopman import KoopmanModel
+from rkmpc.learning.pipeline import TrainConfig, default_model_options, train_model
+from rkmpc.scenario import Scenario, load_scenario
+from rkmpc.sim.log import write_json_atomic
 
 SHARED_MONZA = Path(__file__).resolve().parents[1].parent / "shared" / "tracks" / "centerlines" / "Monza.csv"
 
-#: (label, controller name, options)
+#: (label, controller name, options) of the controllers that need no training.
 CASES = (
     ("pp", "pp", {}),
     ("lmpc (daqp)", "lmpc", {"config": LMPCConfig(solver="daqp")}),
@@ -34,17 +39,37 @@ CASES = (
 )
 
 
+def learned_cases(scenario: Scenario, kmpc_model: Path | None) -> list[tuple[str, str, dict[str, Any]]]:
+    """Train the learned controllers on two LMPC laps of the track (as the paper does)."""
+    data = collect(scenario, laps=2)
+    wheelbase = scenario.vehicle.wheelbase
+    cases: list[tuple[str, str, dict[str, Any]]] = [
+        ("lmpc-id", "lmpc-id", {"model": identify(data, wheelbase)})
+    ]
+    for name, kind in (("rkmpc", "residual"), ("rkmpc-paper", "paper")):
+        model, _ = train_model(data, wheelbase, TrainConfig(kind=kind, model=default_model_options(kind)))
+        cases.append((name, name, {"model": model}))
+    if kmpc_model is not None:
+        cases.append(("kmpc", "kmpc", {"model": KoopmanModel.load(kmpc_model)}))
+    return cases
+
+
 def main() -> None:
     """Entry point."""
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--track", default=str(SHARED_MONZA) if SHARED_MONZA.exists() else "builtin")
     parser.add_argument("--out", type=Path, default=Path("runs/bench/step_times.json"))
+    parser.add_argument("--no-learned", action="store_true", help="skip the controllers that need training")
+    parser.add_argument("--kmpc-model", type=Path, default=None, help="a trained koopman model, to time KMPC")
     args = parser.parse_args()
     scenario = load_scenario(args.track)
+    cases = list(CASES)
+    if not args.no_learned:
+        cases += learned_cases(scenario, args.kmpc_model)
     report: dict[str, object] = {"track": scenario.track.name, "versions": versions(), "controllers": {}}
     print(f"track {scenario.track.name}, {scenario.reference.path.length:.1f} m")
     print(f"{'controller':14s} {'steps':>6s} {'median':>8s} {'mean':>8s} {'p99':>8s} {'max':>8s}  (ms)")
-    for label, name, options in CASES:
+    for label, name, options in cases:
         result, metrics = run_controller(scenario, RunSpec(controller=name), controller_options=options)
         ms = 1e3 * result.log["solve_time_s"]
         ms = ms[np.isfinite(ms)]

@@ -14,23 +14,23 @@ import os
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
-import argparse  # noqa: E402
-import json  # noqa: E402
-import multiprocessing  # noqa: E402
-from concurrent.futures import ProcessPoolExecutor  # noqa: E402
-from dataclasses import replace  # noqa: E402
-from pathlib import Path  # noqa: E402
-from typing import Any  # noqa: E402
+import argparse
+import json
+import multiprocessing
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
 
-import numpy as np  # noqa: E402
+import numpy as np
 
-from rkmpc.control.rkmpc import ResidualMPCConfig  # noqa: E402
-from rkmpc.experiments.learned import LEARNED_CONTROLLERS, RKMPC_CONFIG, TrackStudy, evaluate_track  # noqa: E402
-from rkmpc.learning.augmentation import AugmentConfig  # noqa: E402
-from rkmpc.learning.collect import collect_excitation  # noqa: E402
-from rkmpc.learning.pipeline import TrainConfig, default_model_options, train_model  # noqa: E402
-from rkmpc.scenario import load_scenario  # noqa: E402
-from rkmpc.sim.log import write_json_atomic  # noqa: E402
+from rkmpc.control.rkmpc import ResidualMPCConfig
+from rkmpc.experiments.learned import LEARNED_CONTROLLERS, RKMPC_CONFIG, TrackStudy, evaluate_track
+from rkmpc.learning.augmentation import AugmentConfig
+from rkmpc.learning.collect import collect_excitation
+from rkmpc.learning.pipeline import TrainConfig, default_model_options, train_model
+from rkmpc.scenario import load_scenario
+from rkmpc.sim.log import write_json_atomic
 
 SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "tracks" / "centerlines"
 KEYS = (

@@ -13,15 +13,15 @@ import os
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
-import argparse  # noqa: E402
-from concurrent.futures import ProcessPoolExecutor  # noqa: E402
-from pathlib import Path  # noqa: E402
-from typing import Any  # noqa: E402
+import argparse
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+from typing import Any
 
-from rkmpc.analysis.table import TABLE_COLUMNS, format_cell  # noqa: E402
-from rkmpc.experiments.runner import RunSpec, run_controller, versions  # noqa: E402
-from rkmpc.scenario import load_scenario  # noqa: E402
-from rkmpc.sim.log import write_json_atomic  # noqa: E402
+from rkmpc.analysis.table import TABLE_COLUMNS, format_cell
+from rkmpc.experiments.runner import RunSpec, run_controller, versions
+from rkmpc.scenario import load_scenario
+from rkmpc.sim.log import write_json_atomic
 
 SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "tracks" / "centerlines"
 

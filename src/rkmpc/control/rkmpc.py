@@ -143,6 +143,10 @@ class _ResidualBase(Controller):
         self._u_prev: np.ndarray | None = None
         #: Last correction applied (first step), shape (2,).
         self.last_correction = np.zeros(2)
+        self._precompute()
+
+    def _precompute(self) -> None:
+        """Compute what does not change between steps (subclasses)."""
 
     def _reset(self) -> None:
         self.lmpc.reset()
@@ -214,17 +218,10 @@ class ResidualKoopmanMPC(_ResidualBase):
 
     name = "rkmpc"
 
-    def __init__(
-        self,
-        reference: Reference,
-        vehicle: VehicleParams,
-        model: LiftedModel,
-        config: ResidualMPCConfig | None = None,
-        lmpc_config: LMPCConfig | None = None,
-    ) -> None:
-        super().__init__(reference, vehicle, model, config, lmpc_config)
+    def _precompute(self) -> None:
         # Time invariant: U_p over the horizon = Mz z0 + Mu U, computed once.
-        self._Mz, self._Mu = lifted_prediction(model.A_, model.B_, model.C_, model.D_, self.horizon, first=0)
+        m = self.model
+        self._Mz, self._Mu = lifted_prediction(m.A_, m.B_, m.C_, m.D_, self.horizon, first=0)
 
     def _residual_qp(
         self, observation: Observation, pred: Prediction, plan: np.ndarray
@@ -264,23 +261,13 @@ class PaperResidualKoopmanMPC(_ResidualBase):
     #: The literal model mispredicts the pose, so only heavily weighted corrections keep it on track.
     default_config = ResidualMPCConfig(heading_weight=5.0, speed_weight=5.0, steer_weight=5000.0)
 
-    def __init__(
-        self,
-        reference: Reference,
-        vehicle: VehicleParams,
-        model: LiftedModel,
-        config: ResidualMPCConfig | None = None,
-        lmpc_config: LMPCConfig | None = None,
-    ) -> None:
-        super().__init__(reference, vehicle, model, config, lmpc_config)
-        C = model.C_[:3]
-        self._Mz, self._Mu = lifted_prediction(model.A_, model.B_, C, None, self.horizon, first=1)
-        self._z0 = np.asarray(model.lift(np.zeros(3)), dtype=float)
-        self._free = self._Mz @ self._z0
-        MtQ = self._Mu.T * self._q
+    def _precompute(self) -> None:
+        m = self.model
+        self._Mz, self._Mu = lifted_prediction(m.A_, m.B_, m.C_[:3], None, self.horizon, first=1)
+        self._free = self._Mz @ np.asarray(m.lift(np.zeros(3)), dtype=float)
         # Fixed Hessian: the model is time invariant and starts at the local origin.
-        self._H = 2.0 * (MtQ @ self._Mu + np.diag(self._r))
-        self._MtQ = MtQ
+        self._MtQ = self._Mu.T * self._q
+        self._H = 2.0 * (self._MtQ @ self._Mu + np.diag(self._r))
 
     def _residual_qp(
         self, observation: Observation, pred: Prediction, plan: np.ndarray

@@ -36,7 +36,7 @@ import numpy as np
 
 from rkmpc.control.base import OBSERVATION_FIELDS
 from rkmpc.errors import InputFileError, ParameterError
-from rkmpc.sim.log import StepLog
+from rkmpc.sim.log import StepLog, json_default
 
 #: Version of the ``.npz`` layout written by :meth:`TransitionDataset.save`.
 FORMAT_VERSION = 1
@@ -68,22 +68,12 @@ class _Problem(Exception):
         self.problem = problem
 
 
-def _json_default(value: Any) -> Any:
-    if isinstance(value, np.generic):
-        return value.item()
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    if isinstance(value, Path):
-        return str(value)
-    raise TypeError(f"cannot write {type(value).__name__} as JSON")
-
-
 def _plain_json(metadata: Any) -> dict[str, Any]:
     """``metadata`` as plain JSON types (numpy scalars become Python numbers)."""
     if not isinstance(metadata, dict):
         raise _Problem("metadata", f"must be a dict, got {type(metadata).__name__}")
     try:
-        plain = json.loads(json.dumps(metadata, default=_json_default, allow_nan=True))
+        plain = json.loads(json.dumps(metadata, default=json_default, allow_nan=True))
     except (TypeError, ValueError) as exc:
         raise _Problem("metadata", f"not JSON-able: {exc}") from None
     return dict(plain)
@@ -420,7 +410,7 @@ class TransitionDataset:
                     next_obs=self.next_obs,
                     episode=self.episode,
                     dt=np.float64(self.dt),
-                    metadata=np.str_(json.dumps(self.metadata, default=_json_default)),
+                    metadata=np.str_(json.dumps(self.metadata, default=json_default)),
                     format=np.int64(FORMAT_VERSION),
                 )
             os.replace(tmp, path)

@@ -41,6 +41,7 @@ import numpy as np
 from rkmpc.errors import InputFileError, ParameterError
 from rkmpc.learning.edmd import fit_dynamics, fit_output
 from rkmpc.learning.lifting import RBF_KINDS, MLPLifting, RBFLifting, standardisation
+from rkmpc.sim.log import json_default
 
 __all__ = ["FORMAT_NAME", "FORMAT_VERSION", "LIFTING_KINDS", "KoopmanModel"]
 
@@ -50,18 +51,6 @@ LIFTING_KINDS = ("mlp", "rbf", "none")
 _MATRICES = ("A", "B", "C", "D", "Cx")
 
 Lifting = MLPLifting | RBFLifting
-
-
-def _json_default(value: Any) -> Any:
-    if isinstance(value, np.generic):
-        return value.item()
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    if isinstance(value, Path):
-        return str(value)
-    if isinstance(value, tuple):
-        return list(value)
-    raise TypeError(f"cannot store a {type(value).__name__} in the model metadata")
 
 
 def _data(value: Any, name: str, ndim: int) -> np.ndarray:
@@ -571,7 +560,7 @@ class KoopmanModel:
         if self.lifting_ is not None:
             for key, value in self.lifting_.to_arrays().items():
                 arrays[f"lifting.{key}"] = value
-        arrays["metadata"] = np.array(json.dumps(header, default=_json_default))
+        arrays["metadata"] = np.array(json.dumps(header, default=json_default))
         path.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
         try:

@@ -110,7 +110,7 @@ def write_json_atomic(path: str | Path, payload: Any) -> None:
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     try:
         with os.fdopen(fd, "w") as handle:
-            json.dump(payload, handle, indent=2, sort_keys=False, default=_json_default)
+            json.dump(payload, handle, indent=2, sort_keys=False, default=json_default)
             handle.write("\n")
         os.replace(tmp, path)
     except BaseException:
@@ -118,11 +118,14 @@ def write_json_atomic(path: str | Path, payload: Any) -> None:
         raise
 
 
-def _json_default(value: Any) -> Any:
+def json_default(value: Any) -> Any:
+    """``default=`` hook of :func:`json.dump` for numpy values, paths and tuples."""
     if isinstance(value, np.generic):
         return value.item()
     if isinstance(value, np.ndarray):
         return value.tolist()
     if isinstance(value, Path):
         return str(value)
+    if isinstance(value, tuple):
+        return list(value)
     raise TypeError(f"cannot write {type(value).__name__} as JSON")
