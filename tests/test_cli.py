@@ -133,3 +133,15 @@ def test_model_of_the_wrong_kind_is_refused(tmp_path, capsys):
 def test_learned_controller_without_model(tmp_path, capsys):
     assert main(["run", "--controller", "rkmpc", "--out", str(tmp_path / "o")]) == 2
     assert "--model" in capsys.readouterr().err
+
+
+def test_collect_from_a_run_log(tmp_path):
+    run = tmp_path / "run"
+    assert main(["run", "--controller", "pp", "--track", "oval", "--out", str(run)]) == 0
+    data = tmp_path / "from_log.npz"
+    assert main(["collect", "--from-log", str(run / "log.csv"), "--out", str(data)]) == 0
+    from rkmpc.learning.dataset import TransitionDataset
+
+    loaded = TransitionDataset.load(data)
+    assert len(loaded) > 100
+    assert loaded.metadata["controller"] == "pp"

@@ -54,6 +54,13 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="N",
         help="instead: N random-excitation samples in open space (for KMPC)",
     )
+    collect.add_argument(
+        "--from-log",
+        type=Path,
+        default=None,
+        metavar="LOG",
+        help="instead: turn the log.csv of an earlier `rkmpc run` into a data set",
+    )
     _add_scenario_args(collect)
     collect.set_defaults(laps=2)
     train = sub.add_parser("train", help="train a model from a data set")
@@ -122,6 +129,15 @@ def _cmd_collect(args: argparse.Namespace) -> int:
     from rkmpc.learning.collect import collect, collect_excitation
     from rkmpc.scenario import load_scenario
 
+    if args.from_log is not None:
+        from rkmpc.learning.dataset import TransitionDataset
+        from rkmpc.sim.log import StepLog
+
+        log = StepLog.from_csv(args.from_log)
+        data = TransitionDataset.from_log(log, metadata={**log.metadata, "source": str(args.from_log)})
+        data.save(args.out)
+        print(f"{len(data)} transitions -> {args.out}")
+        return 0
     scenario = load_scenario(args.track, raceline=args.raceline, scale=args.scale, vehicle=args.vehicle)
     noise = DEFAULT_NOISE if args.noise else None
     if args.excitation:
@@ -153,13 +169,27 @@ def _cmd_train(args: argparse.Namespace) -> int:
     options = default_model_options(args.kind, seed=args.seed)
     if args.epochs is not None:
         options["epochs"] = args.epochs
+    from rich.console import Console
+    from rich.progress import Progress
+
     config = TrainConfig(kind=args.kind, augment=AugmentConfig(seed=args.seed), model=options)
-    model, report = train_model(data, wheelbase, config)
+    console = Console(stderr=True)
+    with Progress(console=console, transient=True, disable=not console.is_terminal) as progress:
+        task = progress.add_task(f"training {args.kind}", total=options.get("epochs", 300))
+
+        def on_epoch(epoch: int, loss: float) -> None:
+            progress.update(task, completed=epoch, description=f"training {args.kind} (loss {loss:.3g})")
+
+        model, report = train_model(data, wheelbase, config, on_epoch=on_epoch)
     model.save(args.out, metadata=model.metadata_)
     print(
         f"{args.kind} model: {report.raw_count} raw -> {report.augmented_count} augmented samples, "
         f"{report.fit_time_s:.1f} s -> {args.out}"
     )
+    err = report.multi_step_error
+    if err:
+        steps = [k for k in (1, 10, len(err)) if k <= len(err)]
+        print("held-out prediction error: " + ", ".join(f"{err[k - 1]:.4f} at step {k}" for k in steps))
     return 0
 
 
