@@ -19,8 +19,13 @@ $(VENV)/.installed-test: pyproject.toml | $(BIN)/python
 	$(BIN)/python -m pip install --quiet -e '.[test]'
 	touch $@ $(VENV)/.installed
 
+# Two LMPC laps of data, the residual model and lmpc-id learned from them, then every controller.
 demo: $(VENV)/.installed
-	$(BIN)/rkmpc compare --track builtin --controllers pp,lmpc --out runs/demo
+	$(BIN)/rkmpc collect --controller lmpc --laps 2 --track builtin --out runs/demo/data.npz
+	$(BIN)/rkmpc train --data runs/demo/data.npz --kind residual --out runs/demo/residual.rkm
+	$(BIN)/rkmpc train --data runs/demo/data.npz --kind identified --out runs/demo/identified.json
+	$(BIN)/rkmpc compare --track builtin --controllers pp,lmpc,lmpc-id,rkmpc \
+		--model rkmpc=runs/demo/residual.rkm --model lmpc-id=runs/demo/identified.json --out runs/demo
 
 test: $(VENV)/.installed-test
 	$(BIN)/ruff check src tests benchmarks
