@@ -264,7 +264,7 @@ def _cmd_compare(args: argparse.Namespace, names: list[str], *, single: bool) ->
         table.add_column(col)
     for row in table_rows(results, "lmpc" if with_change else None):
         table.add_row(*row)
-    Console(width=None if Console().is_terminal else 200).print(table)
+    Console(width=None if Console().is_terminal else 260).print(table)
     return 0
 
 
