@@ -7,4 +7,6 @@ try:
 except PackageNotFoundError:  # pragma: no cover - running from a source tree
     __version__ = "0.0.0"
 
-__all__ = ["__version__"]
+from rkmpc.control.factory import make_controller
+
+__all__ = ["__version__", "make_controller"]

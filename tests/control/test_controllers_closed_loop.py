@@ -64,3 +64,10 @@ def test_lmpc_osqp_backend_matches_daqp(builtin_scenario):
     ca, cb = a.step(obs), b.step(obs)
     assert ca.steer == pytest.approx(cb.steer, abs=2e-3)
     assert ca.speed == pytest.approx(cb.speed, abs=2e-3)
+
+
+def test_top_level_factory(builtin_scenario):
+    import rkmpc
+
+    ctrl = rkmpc.make_controller("pp", builtin_scenario.reference, builtin_scenario.vehicle)
+    assert ctrl.name == "pp"
