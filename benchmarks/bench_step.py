@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from rkmpc.control.lmpc import LMPCConfig
+from rkmpc.control.nmpc import NMPCConfig
 from rkmpc.experiments.runner import RunSpec, run_controller, versions
 from rkmpc.learning.collect import collect
 from rkmpc.learning.identification import identify
@@ -36,6 +37,10 @@ CASES = (
     ("pp", "pp", {}),
     ("lmpc (daqp)", "lmpc", {"config": LMPCConfig(solver="daqp")}),
     ("lmpc (osqp)", "lmpc", {"config": LMPCConfig(solver="osqp")}),
+    ("nmpc (ipopt)", "nmpc", {}),
+    ("nmpc (sqp, 1 it)", "nmpc", {"config": NMPCConfig(solver="sqpmethod", max_iterations=1)}),
+    ("nmpc-dyn (ipopt)", "nmpc-dynamic", {}),
+    ("nmpc-dyn (sqp, 1 it)", "nmpc-dynamic", {"config": NMPCConfig(solver="sqpmethod", max_iterations=1)}),
 )
 
 
@@ -68,7 +73,7 @@ def main() -> None:
         cases += learned_cases(scenario, args.kmpc_model)
     report: dict[str, object] = {"track": scenario.track.name, "versions": versions(), "controllers": {}}
     print(f"track {scenario.track.name}, {scenario.reference.path.length:.1f} m")
-    print(f"{'controller':14s} {'steps':>6s} {'median':>8s} {'mean':>8s} {'p99':>8s} {'max':>8s}  (ms)")
+    print(f"{'controller':20s} {'steps':>6s} {'median':>8s} {'mean':>8s} {'p99':>8s} {'max':>8s}  (ms)")
     for label, name, options in cases:
         result, metrics = run_controller(scenario, RunSpec(controller=name), controller_options=options)
         ms = 1e3 * result.log["solve_time_s"]
@@ -83,7 +88,7 @@ def main() -> None:
         }
         report["controllers"][label] = stats  # type: ignore[index]
         print(
-            f"{label:14s} {stats['steps']:6d} {stats['median_ms']:8.3f} {stats['mean_ms']:8.3f} "
+            f"{label:20s} {stats['steps']:6d} {stats['median_ms']:8.3f} {stats['mean_ms']:8.3f} "
             f"{stats['p99_ms']:8.3f} {stats['max_ms']:8.3f}"
         )
     write_json_atomic(args.out, report)

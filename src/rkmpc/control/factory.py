@@ -9,6 +9,7 @@ from rkmpc.control.base import Controller
 from rkmpc.control.koopman_mpc import KoopmanMPC
 from rkmpc.control.lmpc import LinearMPC
 from rkmpc.control.lmpc_id import IdentifiedLMPC
+from rkmpc.control.nmpc import DynamicNMPC, KinematicNMPC
 from rkmpc.control.pure_pursuit import PurePursuit
 from rkmpc.control.rkmpc import PaperResidualKoopmanMPC, ResidualKoopmanMPC
 from rkmpc.vehicle.params import VehicleParams
@@ -23,6 +24,8 @@ CONTROLLERS: dict[str, ControllerFactory] = {
     "pp": PurePursuit,
     "lmpc": LinearMPC,
     "lmpc-id": IdentifiedLMPC,
+    "nmpc": KinematicNMPC,
+    "nmpc-dynamic": DynamicNMPC,
     "kmpc": KoopmanMPC,
     "rkmpc": ResidualKoopmanMPC,
     "rkmpc-paper": PaperResidualKoopmanMPC,
@@ -51,7 +54,8 @@ def make_controller(name: str, reference: Reference, vehicle: VehicleParams, **o
     ----------
     name : str
         Registry name: ``"pp"`` (pure pursuit), ``"lmpc"`` (linear MPC),
-        ``"lmpc-id"`` (LMPC with identified servo lag and understeer), ``"kmpc"``
+        ``"lmpc-id"`` (LMPC with identified servo lag and understeer), ``"nmpc"`` and
+        ``"nmpc-dynamic"`` (nonlinear MPC, CasADi), ``"kmpc"``
         (Koopman MPC), ``"rkmpc"`` (residual Koopman MPC) or ``"rkmpc-paper"``
         (its literal reading). The last four need ``model=``.
     reference : Reference

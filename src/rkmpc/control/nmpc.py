@@ -1,0 +1,534 @@
+"""Nonlinear MPC on the kinematic (the paper's NMPC) and the dynamic single-track model.
+
+Both controllers solve, every control period, the multiple-shooting NLP
+
+.. math::
+
+    \\min_{X, U} \\sum_{k=1}^{N} q_p \\|p_k - p^r_k\\|^2 + q_\\theta (\\theta_k - \\theta^r_k)^2
+    + \\sum_{k=0}^{N-1} r_v (v_k - v^r_k)^2 + r_\\delta (\\delta_k - \\delta^r_k)^2
+    + w_v (v_k - v_{k-1})^2 + w_\\delta (\\delta_k - \\delta_{k-1})^2
+
+subject to ``X_0 = x(t)``, ``X_{k+1} = F(X_k, U_k)`` (RK4 of the model over one
+period), the input bounds of the car, ``v_k <= v^r_k + margin`` and
+``|delta_k - delta_{k-1}| <= max_rate * dt``, where ``u_{-1}`` is the input
+applied at the previous step. This is the cost and constraint set of
+:class:`rkmpc.control.lmpc.LinearMPC`, without the linearisation.
+
+The NLP is built once with CasADi (SX, ``expand=True``); its parameters are
+the initial state, the reference poses and inputs over the horizon and the
+previous input. Positions are expressed relative to the current reference
+point and the observed yaw is unwrapped to the branch of the reference
+heading, so the problem is well scaled anywhere on any track. Every step only
+sets the parameters and bounds and warm-starts the solver from the previous
+solution shifted by one step (primal and dual).
+
+When the solver fails (not converged, iteration or CPU-time budget exceeded,
+infeasible, exception) the step falls back to the previous plan shifted by one
+step, or to the reference inputs when there is none, and reports
+``"fallback"`` with the solver's status.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import casadi as ca
+import numpy as np
+
+from rkmpc.control.base import Command, Controller, Observation
+from rkmpc.control.lmpc import wrap_angle
+from rkmpc.control.nmpc_models import dynamic_ode, kinematic_ode, rk4_map
+from rkmpc.errors import ParameterError
+from rkmpc.vehicle.params import VehicleParams
+
+if TYPE_CHECKING:
+    from rkmpc.track.reference import Reference, ReferenceHorizon
+
+__all__ = ["SOLVERS", "DynamicNMPC", "KinematicNMPC", "NMPCConfig"]
+
+#: NLP solvers :class:`NMPCConfig` accepts.
+SOLVERS = ("ipopt", "sqpmethod")
+#: Hessian choices of :class:`NMPCConfig`.
+HESSIANS = ("exact", "gauss-newton", "limited-memory")
+
+_TWO_PI = 2.0 * math.pi
+
+
+@dataclass(frozen=True)
+class NMPCConfig:
+    """Weights, horizon and solver of the nonlinear MPCs.
+
+    The weights and their defaults are those of
+    :class:`rkmpc.control.lmpc.LMPCConfig`, so the NMPC and the LMPC differ
+    only in the model.
+
+    Parameters
+    ----------
+    horizon : int
+        Prediction horizon N (steps).
+    dt : float
+        Control period T (s).
+    position_weight : float
+        Weight of the squared x and y errors.
+    heading_weight : float
+        Weight of the squared heading error.
+    speed_weight, steer_weight : float
+        Weights of the squared deviations of the inputs from the reference inputs.
+    speed_rate_weight, steer_rate_weight : float
+        Weights of the squared step-to-step input changes (including the change
+        from the input applied at the previous step).
+    terminal_factor : float
+        Multiplier of the state weights at the last step.
+    speed_margin : float
+        Largest commanded speed above the reference speed profile (m/s).
+    solver : str
+        ``"ipopt"`` (interior point, solved to convergence) or ``"sqpmethod"``
+        (SQP with the ``qrqp`` QP solver; with ``max_iterations=1`` one
+        Newton-type step per period, like a real-time iteration).
+    max_iterations : int
+        Iteration budget per step; IPOPT's ``max_iter``, or the SQP iterations.
+        An IPOPT solve that reaches it falls back.
+    max_cpu_time : float
+        IPOPT's CPU-time budget per step (s); a solve that exceeds it falls back.
+    warm_start : bool
+        Warm-start every solve from the shifted previous solution, primal and
+        dual (for IPOPT with ``warm_start_init_point``).
+    tolerance : float
+        IPOPT's ``tol`` (and the SQP's ``tol_pr``/``tol_du``).
+    substeps : int or None
+        RK4 steps per control period; None for the model's default (1 for the
+        kinematic model, 2 for the dynamic one).
+    hessian : str or None
+        Hessian of the Lagrangian: ``"exact"``; ``"gauss-newton"``, the
+        Hessian of the (quadratic) cost alone, which drops the curvature of
+        the model and costs nothing to evaluate; ``"limited-memory"``
+        (L-BFGS); or None for the model's default
+        (exact for the kinematic model, Gauss-Newton for the dynamic one,
+        whose exact Hessian dominates the solve time).
+    """
+
+    horizon: int = 30
+    dt: float = 0.05
+    position_weight: float = 1.0
+    heading_weight: float = 5.0
+    speed_weight: float = 0.05
+    steer_weight: float = 2.0
+    speed_rate_weight: float = 0.05
+    steer_rate_weight: float = 0.1
+    terminal_factor: float = 1.0
+    speed_margin: float = 0.0
+    solver: str = "ipopt"
+    max_iterations: int = 50
+    max_cpu_time: float = 0.04
+    warm_start: bool = True
+    tolerance: float = 1e-6
+    substeps: int | None = None
+    hessian: str | None = None
+
+    def __post_init__(self) -> None:
+        if self.horizon < 2:
+            raise ParameterError(f"NMPCConfig.horizon must be >= 2, got {self.horizon}")
+        for name in ("dt", "max_cpu_time", "tolerance"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise ParameterError(f"NMPCConfig.{name} must be finite and > 0, got {value}")
+        for name in (
+            "position_weight",
+            "heading_weight",
+            "speed_weight",
+            "steer_weight",
+            "speed_rate_weight",
+            "steer_rate_weight",
+            "terminal_factor",
+            "speed_margin",
+        ):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0):
+                raise ParameterError(f"NMPCConfig.{name} must be finite and >= 0, got {value}")
+        if self.speed_weight + self.speed_rate_weight <= 0 or self.steer_weight + self.steer_rate_weight <= 0:
+            raise ParameterError("NMPCConfig: each input needs a positive weight or rate weight")
+        if self.solver not in SOLVERS:
+            raise ParameterError(f"NMPCConfig.solver must be one of {SOLVERS}, got {self.solver!r}")
+        if self.max_iterations < 1:
+            raise ParameterError(f"NMPCConfig.max_iterations must be >= 1, got {self.max_iterations}")
+        if self.hessian is not None and self.hessian not in HESSIANS:
+            raise ParameterError(f"NMPCConfig.hessian must be one of {HESSIANS}, got {self.hessian!r}")
+        if self.substeps is not None and self.substeps < 1:
+            raise ParameterError(f"NMPCConfig.substeps must be >= 1 or None, got {self.substeps}")
+
+
+class KinematicNMPC(Controller):
+    """The paper's NMPC: the kinematic bicycle model (Eq. 1) in a multiple-shooting NLP.
+
+    States ``[x, y, theta]``, inputs ``[v, delta]``; see the module docstring
+    for the NLP.
+
+    Parameters
+    ----------
+    reference : Reference
+        Path and speed profile to track.
+    vehicle : VehicleParams
+        Wheelbase, input limits and steering-rate limit (and, for
+        :class:`DynamicNMPC`, the nominal dynamic parameters).
+    config : NMPCConfig, optional
+        Weights, horizon and solver.
+
+    Attributes
+    ----------
+    last_plan : numpy.ndarray or None
+        Input sequence ``[v, delta]`` of the last successful solve, shape (N, 2).
+    last_states : numpy.ndarray or None
+        Predicted states of the last successful solve in track coordinates,
+        shape (N+1, nx).
+    last_status : str
+        Return status of the last solve.
+    """
+
+    name = "nmpc"
+    #: Number of model states (the first three are always ``x, y, theta``).
+    nx = 3
+    #: RK4 steps per period when the config leaves it open.
+    default_substeps = 1
+    #: Hessian when the config leaves it open.
+    default_hessian = "exact"
+
+    def __init__(
+        self, reference: Reference, vehicle: VehicleParams, config: NMPCConfig | None = None
+    ) -> None:
+        super().__init__()
+        self.reference = reference
+        self.vehicle = vehicle
+        self.config = config if config is not None else NMPCConfig()
+        cfg = self.config
+        self.substeps = cfg.substeps if cfg.substeps is not None else self.default_substeps
+        self.hessian = cfg.hessian if cfg.hessian is not None else self.default_hessian
+        self.steer_step_max = vehicle.steering.max_rate * cfg.dt
+        self.u_min = np.array([vehicle.drive.min_speed, -vehicle.steering.max_angle])
+        self.u_max = np.array([vehicle.drive.max_speed, vehicle.steering.max_angle])
+        #: Discrete model map ``F(x, u) -> x_next`` (CasADi SX function).
+        self.model_map = rk4_map(self._ode(), cfg.dt, self.substeps)
+        self._solver = self._build_solver()
+        self._reset()
+
+    # ------------------------------------------------------------------ model hooks
+    def _ode(self) -> Any:
+        """The continuous-time model ``f(x, u)`` (CasADi function)."""
+        return kinematic_ode(self.vehicle.wheelbase)
+
+    def _initial_state(self, observation: Observation, yaw: float) -> np.ndarray:
+        """Model state at the observation; ``yaw`` is already on the reference branch."""
+        return np.array([observation.x, observation.y, yaw])
+
+    def _reference_states(self, ref: ReferenceHorizon) -> np.ndarray:
+        """States along the reference for a cold start, shape (N+1, nx)."""
+        return np.column_stack([ref.x, ref.y, ref.theta])
+
+    def _first_previous_input(self, observation: Observation, u_ref: np.ndarray) -> np.ndarray:
+        """The input taken as applied before the first step."""
+        return np.array([observation.speed, u_ref[0, 1]])
+
+    # ------------------------------------------------------------------ NLP
+    def _build_solver(self) -> Any:
+        cfg = self.config
+        n, nx = cfg.horizon, self.nx
+        X = ca.SX.sym("X", nx, n + 1)
+        U = ca.SX.sym("U", 2, n)
+        x0 = ca.SX.sym("x0", nx)
+        pose_r = ca.SX.sym("pose_r", 3, n)
+        u_r = ca.SX.sym("u_r", 2, n)
+        u_prev = ca.SX.sym("u_prev", 2)
+        x_next = self.model_map.map(n)(X[:, :n], U)
+        w_state = ca.DM([cfg.position_weight, cfg.position_weight, cfg.heading_weight])
+        terminal = ca.DM.ones(1, n)
+        terminal[n - 1] = cfg.terminal_factor
+        e_state = X[:3, 1:] - pose_r
+        cost = ca.sum2(ca.sum1(w_state * e_state**2) * terminal)
+        w_in = ca.DM([cfg.speed_weight, cfg.steer_weight])
+        w_rate = ca.DM([cfg.speed_rate_weight, cfg.steer_rate_weight])
+        du = ca.horzcat(U[:, 0] - u_prev, U[:, 1:] - U[:, :-1])
+        cost += ca.sum2(ca.sum1(w_in * (U - u_r) ** 2)) + ca.sum2(ca.sum1(w_rate * du**2))
+        g = ca.vertcat(ca.vec(X[:, 0] - x0), ca.vec(X[:, 1:] - x_next), ca.vec(du[1, :]))
+        w = ca.vertcat(ca.vec(X), ca.vec(U))
+        p = ca.vertcat(x0, ca.vec(pose_r), ca.vec(u_r), u_prev)
+        nlp = {"x": w, "p": p, "f": cost, "g": g}
+        self._n_w = int(w.numel())
+        self._n_g = int(g.numel())
+        self._n_xvars = nx * (n + 1)
+        self._lbg = np.zeros(self._n_g)
+        self._ubg = np.zeros(self._n_g)
+        self._lbg[-n:] = -self.steer_step_max
+        self._ubg[-n:] = self.steer_step_max
+        common: dict[str, Any] = {"expand": True, "print_time": False, "error_on_fail": False}
+        if self.hessian == "gauss-newton":
+            # The cost is quadratic in w, so its Hessian is constant; the model's curvature is dropped.
+            lam_f = ca.SX.sym("lam_f")
+            lam_g = ca.SX.sym("lam_g", self._n_g)
+            hess = lam_f * ca.hessian(cost, w)[0]
+            # IPOPT takes the upper triangle, the SQP method the full symmetric matrix.
+            if cfg.solver == "ipopt":
+                hess = ca.triu(hess)
+            common["hess_lag"] = ca.Function("hess_lag", [w, p, lam_f, lam_g], [hess])
+        if cfg.solver == "ipopt":
+            opts: dict[str, Any] = {
+                "ipopt": {
+                    "print_level": 0,
+                    "sb": "yes",
+                    "tol": cfg.tolerance,
+                    "max_iter": cfg.max_iterations,
+                    "max_cpu_time": cfg.max_cpu_time,
+                    "warm_start_init_point": "yes" if cfg.warm_start else "no",
+                    "warm_start_bound_push": 1e-6,
+                    "warm_start_mult_bound_push": 1e-6,
+                    "mu_init": 1e-3 if cfg.warm_start else 0.1,
+                },
+            }
+            if self.hessian == "limited-memory":
+                opts["ipopt"]["hessian_approximation"] = "limited-memory"
+        else:
+            opts = {
+                "print_header": False,
+                "print_iteration": False,
+                "print_status": False,
+                "max_iter": cfg.max_iterations,
+                "tol_pr": cfg.tolerance,
+                "tol_du": cfg.tolerance,
+                "convexify_strategy": "regularize",
+                "qpsol": "qrqp",
+                "qpsol_options": {"print_iter": False, "print_header": False, "error_on_fail": False},
+            }
+            if self.hessian == "limited-memory":
+                opts["hessian_approximation"] = "limited-memory"
+        return ca.nlpsol("nmpc", cfg.solver, nlp, {**common, **opts})
+
+    # ------------------------------------------------------------------ controller
+    def _reset(self) -> None:
+        self._s_hint: float | None = None
+        self._u_prev: np.ndarray | None = None
+        self._plan: np.ndarray | None = None
+        self._plan_age = 0
+        # Warm start in track coordinates: states (N+1, nx), inputs (N, 2), duals.
+        self._ws_states: np.ndarray | None = None
+        self._ws_inputs: np.ndarray | None = None
+        self._ws_lam_x: np.ndarray | None = None
+        self._ws_lam_g: np.ndarray | None = None
+        self.last_plan: np.ndarray | None = None
+        self.last_states: np.ndarray | None = None
+        self.last_status = ""
+
+    def _step(self, observation: Observation) -> tuple[Command, str, str]:
+        cfg = self.config
+        n, nx = cfg.horizon, self.nx
+        proj = self.reference.project(observation.x, observation.y, self._s_hint)
+        self._s_hint = proj.s
+        ref = self.reference.horizon(proj.s, n, cfg.dt)
+        u_ref = np.column_stack([ref.v[:n], ref.delta[:n]])
+        if self._u_prev is None:
+            self._u_prev = self._first_previous_input(observation, u_ref)
+        yaw = ref.theta[0] + wrap_angle(observation.yaw - ref.theta[0])
+        x0 = self._initial_state(observation, yaw)
+        origin = np.array([ref.x[0], ref.y[0]])
+        x0_rel = x0.copy()
+        x0_rel[:2] -= origin
+        pose_r = np.column_stack([ref.x[1:] - origin[0], ref.y[1:] - origin[1], ref.theta[1:]])
+        p = np.concatenate([x0_rel, pose_r.ravel(), u_ref.ravel(), self._u_prev])
+
+        lbx = np.full(self._n_w, -np.inf)
+        ubx = np.full(self._n_w, np.inf)
+        u_lb = np.tile(self.u_min, (n, 1))
+        u_ub = np.tile(self.u_max, (n, 1))
+        u_ub[:, 0] = np.minimum(u_ub[:, 0], u_ref[:, 0] + cfg.speed_margin)
+        u_lb[:, 0] = np.minimum(u_lb[:, 0], u_ub[:, 0])
+        lbx[self._n_xvars :] = u_lb.ravel()
+        ubx[self._n_xvars :] = u_ub.ravel()
+
+        states0, inputs0, lam_x0, lam_g0 = self._initial_guess(x0, ref, u_ref)
+        states0 = states0.copy()
+        states0[:, :2] -= origin
+        w0 = np.concatenate([states0.ravel(), np.clip(inputs0, u_lb, u_ub).ravel()])
+        args: dict[str, Any] = {"x0": w0, "p": p, "lbx": lbx, "ubx": ubx, "lbg": self._lbg, "ubg": self._ubg}
+        if cfg.warm_start:
+            args["lam_x0"] = lam_x0
+            args["lam_g0"] = lam_g0
+        try:
+            sol = self._solver(**args)
+            stats = self._solver.stats()
+            status = str(stats.get("return_status", "unknown"))
+            w_opt = np.asarray(sol["x"], dtype=float).ravel()
+            finite = bool(np.all(np.isfinite(w_opt)))
+            solved = finite and self._accept(stats, status)
+        except Exception as exc:  # the loop must never crash on a solver error
+            status = f"exception: {exc}"
+            solved, finite, w_opt, sol = False, False, w0, {}
+        self.last_status = status
+        if finite and (solved or status in ("Maximum_Iterations_Exceeded", "Maximum_CpuTime_Exceeded")):
+            states = w_opt[: self._n_xvars].reshape(n + 1, nx).copy()
+            states[:, :2] += origin
+            inputs = w_opt[self._n_xvars :].reshape(n, 2)
+            self._ws_states, self._ws_inputs = states, inputs
+            self._ws_lam_x = np.asarray(sol["lam_x"], dtype=float).ravel()
+            self._ws_lam_g = np.asarray(sol["lam_g"], dtype=float).ravel()
+        if solved:
+            assert self._ws_inputs is not None and self._ws_states is not None
+            self._plan = self._ws_inputs.copy()
+            self._plan_age = 0
+            self.last_plan = self._plan
+            self.last_states = self._ws_states
+            u = self._plan[0].copy()
+            flag, message = "ok", ""
+        else:
+            u = self._fallback(u_ref)
+            self.last_plan = None
+            self.last_states = None
+            flag, message = "fallback", f"NLP failed: {status}"
+        u = self._clip(u)
+        self._u_prev = u
+        return Command(speed=float(u[0]), steer=float(u[1])), flag, message
+
+    def _accept(self, stats: dict[str, Any], status: str) -> bool:
+        """Whether a solve counts as successful."""
+        if bool(stats.get("success", False)):
+            return True
+        # SQP with a fixed iteration budget (RTI-like): the iterate is used once its QPs were solved.
+        return self.config.solver == "sqpmethod" and status == "Maximum_Iterations_Exceeded"
+
+    def _initial_guess(
+        self, x0: np.ndarray, ref: ReferenceHorizon, u_ref: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Primal guess (states in track coordinates, inputs) and dual guesses."""
+        n = self.config.horizon
+        if not self.config.warm_start or self._ws_states is None or self._ws_inputs is None:
+            states = self._reference_states(ref)
+            states[0] = x0
+            return states, u_ref.copy(), np.zeros(self._n_w), np.zeros(self._n_g)
+        states = _shift(self._ws_states)
+        inputs = _shift(self._ws_inputs)
+        # Keep the previous prediction's heading on the branch of the new reference.
+        states[:, 2] -= _TWO_PI * round((states[0, 2] - x0[2]) / _TWO_PI)
+        states[0] = x0
+        lam_x = np.zeros(self._n_w)
+        lam_g = np.zeros(self._n_g)
+        if self._ws_lam_x is not None and self._ws_lam_g is not None:
+            nx, nxv = self.nx, self._n_xvars
+            lam_x[nxv:] = _shift(self._ws_lam_x[nxv:].reshape(n, 2)).ravel()
+            lam_g[nx:nxv] = _shift(self._ws_lam_g[nx:nxv].reshape(n, nx)).ravel()
+            lam_g[nxv:] = _shift(self._ws_lam_g[nxv:])
+        return states, inputs, lam_x, lam_g
+
+    def _fallback(self, u_ref: np.ndarray) -> np.ndarray:
+        """The previous plan shifted by one step, or the reference inputs."""
+        self._plan_age += 1
+        if self._plan is not None and self._plan_age < self.config.horizon:
+            return self._plan[self._plan_age].copy()
+        return u_ref[0].copy()
+
+    def _clip(self, u: np.ndarray) -> np.ndarray:
+        """Clip to the input bounds and the steering step allowed by the rate limit."""
+        steer = float(u[1])
+        if self._u_prev is not None:
+            prev = float(self._u_prev[1])
+            steer = min(max(steer, prev - self.steer_step_max), prev + self.steer_step_max)
+        return np.clip(np.array([u[0], steer]), self.u_min, self.u_max)
+
+    def predict(self, x0: np.ndarray, inputs: np.ndarray) -> np.ndarray:
+        """Roll the discrete model out from ``x0`` under ``inputs`` (N, 2); returns (N+1, nx)."""
+        states = [np.asarray(x0, dtype=float)]
+        for u in np.asarray(inputs, dtype=float):
+            states.append(np.asarray(self.model_map(states[-1], u), dtype=float).ravel())
+        return np.vstack(states)
+
+
+class DynamicNMPC(KinematicNMPC):
+    """NMPC on the nominal dynamic single-track model with Pacejka tyres and actuator lags.
+
+    States ``[x, y, theta, v, beta, r, delta_w]`` (speed magnitude, side-slip
+    angle, yaw rate, actual wheel angle), inputs ``[v_cmd, delta_cmd]``; see
+    :func:`rkmpc.control.nmpc_models.dynamic_ode`. The cost and constraints are
+    those of :class:`KinematicNMPC` (on ``x, y, theta`` and the inputs).
+
+    Unmeasured parts of the state are estimated: the side slip and yaw rate
+    from the kinematic relations, the wheel angle from the servo lag driven by
+    the previous commands. Unless the config says otherwise the model is
+    integrated with two RK4 steps per period and the NLP uses the Gauss-Newton
+    Hessian (the exact one costs about twice the solve time for the same
+    closed loop).
+
+    Parameters
+    ----------
+    reference : Reference
+        Path and speed profile to track.
+    vehicle : VehicleParams
+        Nominal car parameters.
+    config : NMPCConfig, optional
+        Weights, horizon and solver.
+    min_speed : float, optional
+        Speed floor (m/s) of the model's slip denominators; the car's
+        ``blend_speed_high`` when None.
+    """
+
+    name = "nmpc-dynamic"
+    nx = 7
+    default_substeps = 2
+    default_hessian = "gauss-newton"
+
+    def __init__(
+        self,
+        reference: Reference,
+        vehicle: VehicleParams,
+        config: NMPCConfig | None = None,
+        min_speed: float | None = None,
+    ) -> None:
+        self.min_speed = float(vehicle.blend_speed_high if min_speed is None else min_speed)
+        if not (math.isfinite(self.min_speed) and self.min_speed > 0):
+            raise ParameterError(f"DynamicNMPC.min_speed must be > 0, got {self.min_speed}")
+        self._servo_a = math.exp(-(config or NMPCConfig()).dt / vehicle.steering.time_constant)
+        super().__init__(reference, vehicle, config)
+
+    def _ode(self) -> Any:
+        return dynamic_ode(self.vehicle, self.min_speed)
+
+    def _reset(self) -> None:
+        super()._reset()
+        self._wheel_estimate: float | None = None
+
+    def _first_previous_input(self, observation: Observation, u_ref: np.ndarray) -> np.ndarray:
+        steer = observation.steer_angle if math.isfinite(observation.steer_angle) else u_ref[0, 1]
+        return np.array([observation.speed, steer])
+
+    def _wheel_angle(self, observation: Observation) -> float:
+        """Measured wheel angle, or the servo model's estimate from the previous commands."""
+        if math.isfinite(observation.steer_angle):
+            return observation.steer_angle
+        if self._wheel_estimate is None or self._u_prev is None:
+            self._wheel_estimate = 0.0 if self._u_prev is None else float(self._u_prev[1])
+        else:
+            a = self._servo_a
+            self._wheel_estimate = a * self._wheel_estimate + (1.0 - a) * float(self._u_prev[1])
+        return self._wheel_estimate
+
+    def _initial_state(self, observation: Observation, yaw: float) -> np.ndarray:
+        length = self.vehicle.wheelbase
+        delta = self._wheel_angle(observation)
+        if math.isfinite(observation.slip_angle):
+            beta = observation.slip_angle
+        else:
+            beta = math.atan(self.vehicle.lr / length * math.tan(delta))
+        # The observed speed is the velocity along the heading, v cos(beta).
+        v = max(observation.speed, 0.0) / max(math.cos(beta), 0.1)
+        if math.isfinite(observation.yaw_rate):
+            r = observation.yaw_rate
+        else:
+            r = v * math.cos(beta) * math.tan(delta) / length
+        return np.array([observation.x, observation.y, yaw, v, beta, r, delta])
+
+    def _reference_states(self, ref: ReferenceHorizon) -> np.ndarray:
+        length = self.vehicle.wheelbase
+        beta = np.arctan(self.vehicle.lr / length * np.tan(ref.delta))
+        r = ref.v * np.cos(beta) * np.tan(ref.delta) / length
+        return np.column_stack([ref.x, ref.y, ref.theta, ref.v, beta, r, ref.delta])
+
+
+def _shift(a: np.ndarray) -> np.ndarray:
+    """Drop the first row (entry) and repeat the last one."""
+    return np.concatenate([a[1:], a[-1:]])
