@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from rkmpc._validation import require_nonnegative, require_positive
 from rkmpc.control.base import Command, Controller, Observation
 from rkmpc.control.qp import make_qp
 from rkmpc.errors import ParameterError
@@ -32,6 +33,18 @@ if TYPE_CHECKING:
 def wrap_angle(angle: float) -> float:
     """Wrap an angle (rad) to ``[-pi, pi)``."""
     return (angle + math.pi) % (2.0 * math.pi) - math.pi
+
+
+#: Weights shared by the MPC configurations (all finite and >= 0).
+MPC_WEIGHTS = (
+    "position_weight",
+    "heading_weight",
+    "speed_weight",
+    "steer_weight",
+    "speed_rate_weight",
+    "steer_rate_weight",
+    "terminal_factor",
+)
 
 
 @dataclass(frozen=True)
@@ -88,20 +101,8 @@ class LMPCConfig:
     def __post_init__(self) -> None:
         if self.horizon < 2:
             raise ParameterError(f"LMPCConfig.horizon must be >= 2, got {self.horizon}")
-        if not (math.isfinite(self.dt) and self.dt > 0):
-            raise ParameterError(f"LMPCConfig.dt must be > 0, got {self.dt}")
-        for name in (
-            "position_weight",
-            "heading_weight",
-            "speed_weight",
-            "steer_weight",
-            "speed_rate_weight",
-            "steer_rate_weight",
-            "terminal_factor",
-        ):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value >= 0):
-                raise ParameterError(f"LMPCConfig.{name} must be finite and >= 0, got {value}")
+        require_positive(self, "dt")
+        require_nonnegative(self, *MPC_WEIGHTS)
         if self.speed_weight + self.speed_rate_weight <= 0 or self.steer_weight + self.steer_rate_weight <= 0:
             raise ParameterError("LMPCConfig: each input needs a positive weight or rate weight")
         if self.max_iterations < 1:

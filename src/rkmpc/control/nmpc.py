@@ -37,8 +37,9 @@ from typing import TYPE_CHECKING, Any
 import casadi as ca
 import numpy as np
 
+from rkmpc._validation import require_nonnegative, require_positive
 from rkmpc.control.base import Command, Controller, Observation
-from rkmpc.control.lmpc import wrap_angle
+from rkmpc.control.lmpc import MPC_WEIGHTS, wrap_angle
 from rkmpc.control.nmpc_models import dynamic_ode, kinematic_ode, rk4_map
 from rkmpc.errors import ParameterError
 from rkmpc.vehicle.params import VehicleParams
@@ -130,23 +131,8 @@ class NMPCConfig:
     def __post_init__(self) -> None:
         if self.horizon < 2:
             raise ParameterError(f"NMPCConfig.horizon must be >= 2, got {self.horizon}")
-        for name in ("dt", "max_cpu_time", "tolerance"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value > 0):
-                raise ParameterError(f"NMPCConfig.{name} must be finite and > 0, got {value}")
-        for name in (
-            "position_weight",
-            "heading_weight",
-            "speed_weight",
-            "steer_weight",
-            "speed_rate_weight",
-            "steer_rate_weight",
-            "terminal_factor",
-            "speed_margin",
-        ):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value >= 0):
-                raise ParameterError(f"NMPCConfig.{name} must be finite and >= 0, got {value}")
+        require_positive(self, "dt", "max_cpu_time", "tolerance")
+        require_nonnegative(self, *MPC_WEIGHTS, "speed_margin")
         if self.speed_weight + self.speed_rate_weight <= 0 or self.steer_weight + self.steer_rate_weight <= 0:
             raise ParameterError("NMPCConfig: each input needs a positive weight or rate weight")
         if self.solver not in SOLVERS:

@@ -29,6 +29,7 @@ from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
+from rkmpc._validation import require_nonnegative
 from rkmpc.control.base import Command, Controller, Observation
 from rkmpc.control.lifted import lifted_prediction
 from rkmpc.control.lmpc import LinearMPC, LMPCConfig, Prediction
@@ -92,10 +93,7 @@ class ResidualMPCConfig:
     max_iterations: int = 200
 
     def __post_init__(self) -> None:
-        for name in ("position_weight", "heading_weight", "speed_weight", "steer_weight"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value >= 0):
-                raise ParameterError(f"ResidualMPCConfig.{name} must be finite and >= 0, got {value}")
+        require_nonnegative(self, "position_weight", "heading_weight", "speed_weight", "steer_weight")
         if self.speed_weight <= 0 or self.steer_weight <= 0:
             raise ParameterError("ResidualMPCConfig: speed_weight and steer_weight must be > 0")
         if not (self.max_speed_correction > 0 and self.max_steer_correction > 0):
