@@ -15,6 +15,7 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
 import argparse
+import importlib.util
 from pathlib import Path
 from typing import Any
 
@@ -69,6 +70,8 @@ def main() -> None:
     args = parser.parse_args()
     scenario = load_scenario(args.track)
     cases = list(CASES)
+    if importlib.util.find_spec("acados") is not None:
+        cases.append(("nmpc-acados (rti)", "nmpc-acados", {}))
     if not args.no_learned:
         cases += learned_cases(scenario, args.kmpc_model)
     report: dict[str, object] = {"track": scenario.track.name, "versions": versions(), "controllers": {}}

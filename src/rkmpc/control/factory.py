@@ -19,6 +19,14 @@ if TYPE_CHECKING:
 
 ControllerFactory = Callable[..., Controller]
 
+
+def _acados_nmpc(reference: Reference, vehicle: VehicleParams, **options: Any) -> Controller:
+    """``nmpc-acados``: imported on use, as acados is an optional extra."""
+    from rkmpc.control.nmpc_acados import AcadosKinematicNMPC
+
+    return AcadosKinematicNMPC(reference, vehicle, **options)
+
+
 #: Controller builders by registry name; each takes ``(reference, vehicle, **options)``.
 CONTROLLERS: dict[str, ControllerFactory] = {
     "pp": PurePursuit,
@@ -26,6 +34,7 @@ CONTROLLERS: dict[str, ControllerFactory] = {
     "lmpc-id": IdentifiedLMPC,
     "nmpc": KinematicNMPC,
     "nmpc-dynamic": DynamicNMPC,
+    "nmpc-acados": _acados_nmpc,
     "kmpc": KoopmanMPC,
     "rkmpc": ResidualKoopmanMPC,
     "rkmpc-paper": PaperResidualKoopmanMPC,
