@@ -26,11 +26,20 @@ from rkmpc.sim.log import write_json_atomic
 SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "tracks" / "centerlines"
 
 
-def run_track(job: tuple[str, str, float]) -> tuple[str, str, dict[str, Any]]:
+#: ``--nmpc-sqp``: the nonlinear MPCs on their fast path, one SQP iteration per step.
+FAST_NMPC = {"solver": "sqpmethod", "max_iterations": 1}
+
+
+def run_track(job: tuple[str, str, float, bool]) -> tuple[str, str, dict[str, Any]]:
     """Run one controller on one track (a worker job)."""
-    track, controller, scale = job
+    track, controller, scale, nmpc_sqp = job
     scenario = load_scenario(track, scale=scale)
-    _result, metrics = run_controller(scenario, RunSpec(controller=controller))
+    options = None
+    if nmpc_sqp and controller.startswith("nmpc"):
+        from rkmpc.control.nmpc import NMPCConfig
+
+        options = {"config": NMPCConfig(**FAST_NMPC)}
+    _result, metrics = run_controller(scenario, RunSpec(controller=controller), controller_options=options)
     return scenario.track.name, controller, metrics
 
 
@@ -41,12 +50,13 @@ def main() -> None:
     parser.add_argument("--controllers", default="pp,lmpc")
     parser.add_argument("--scale", type=float, default=0.1)
     parser.add_argument("--workers", type=int, default=os.cpu_count() or 1)
+    parser.add_argument("--nmpc-sqp", action="store_true", help="NMPCs with one SQP iteration per step")
     parser.add_argument("--out", type=Path, default=Path("runs/tracks"))
     args = parser.parse_args()
     files = sorted(args.tracks.glob("*.csv"))
     controllers = args.controllers.split(",")
-    jobs = [("builtin", c, 1.0) for c in controllers]
-    jobs += [(str(f), c, args.scale) for f in files for c in controllers]
+    jobs = [("builtin", c, 1.0, args.nmpc_sqp) for c in controllers]
+    jobs += [(str(f), c, args.scale, args.nmpc_sqp) for f in files for c in controllers]
     table: dict[str, dict[str, dict[str, Any]]] = {}
     with ProcessPoolExecutor(max_workers=args.workers) as pool:
         for track, controller, metrics in pool.map(run_track, jobs):
