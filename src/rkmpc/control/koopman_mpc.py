@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from rkmpc.control.base import Command, Controller, Observation
+from rkmpc.control.guard import CommandGuard
 from rkmpc.control.lifted import lifted_prediction
 from rkmpc.control.lmpc import KinematicMPCProblem, LMPCConfig
 from rkmpc.control.qp import make_qp
@@ -72,16 +73,12 @@ class KoopmanMPC(Controller):
         self._MtQ = MtQ
         self._H = 2.0 * (MtQ @ self._Mu + np.diag(p.r_diag) + p.DtWD)
         self._qp = make_qp(self.config.solver, max_iterations=self.config.max_iterations)
+        self._guard = CommandGuard(vehicle, self.config.dt, n)
         self._s_hint: float | None = None
-        self._u_prev: np.ndarray | None = None
-        self._plan: np.ndarray | None = None
-        self._plan_age = 0
 
     def _reset(self) -> None:
         self._s_hint = None
-        self._u_prev = None
-        self._plan = None
-        self._plan_age = 0
+        self._guard.reset()
 
     def _step(self, observation: Observation) -> tuple[Command, str, str]:
         cfg, p = self.config, self.problem
@@ -90,15 +87,15 @@ class KoopmanMPC(Controller):
         self._s_hint = proj.s
         ref = self.reference.horizon(proj.s, n, cfg.dt)
         u_ref = np.column_stack([ref.v[:n], ref.delta[:n]]).ravel()
-        if self._u_prev is None:
-            self._u_prev = np.array([observation.speed, u_ref[1]])
+        if self._guard.previous is None:
+            self._guard.previous = np.array([observation.speed, u_ref[1]])
         x0 = kmpc_features(observation)
         if not np.all(np.isfinite(x0)):
             return self._fallback(u_ref, "kmpc needs measured speed, yaw rate and wheel angle")
         z0 = self.model.lift(x0)
         local = reference_in_local_frame(ref, observation).ravel()
         d0 = np.zeros(2 * n)
-        d0[:2] = self._u_prev
+        d0[:2] = self._guard.previous
         f = 2.0 * (self._MtQ @ (self._Mz @ z0 - local) - p.r_diag * u_ref - p.D.T @ (p.w_rate * d0))
         lb = np.tile(p.u_min, n)
         ub = np.tile(p.u_max, n)
@@ -113,23 +110,11 @@ class KoopmanMPC(Controller):
         result = self._qp.solve()
         if not result.solved or not np.all(np.isfinite(result.x)):
             return self._fallback(u_ref, f"QP failed: {result.status}")
-        self._plan = result.x.reshape(n, 2)
-        self._plan_age = 0
-        return self._apply(self._plan[0]), "ok", ""
+        return self._command(self._guard.accept(result.x.reshape(n, 2))), "ok", ""
 
     def _fallback(self, u_ref: np.ndarray, message: str) -> tuple[Command, str, str]:
-        self._plan_age += 1
-        if self._plan is not None and self._plan_age < self.config.horizon:
-            u = self._plan[self._plan_age]
-        else:
-            u = u_ref[:2]
-        return self._apply(np.array(u, dtype=float)), "fallback", message
+        return self._command(self._guard.fallback(u_ref[:2])), "fallback", message
 
-    def _apply(self, u: np.ndarray) -> Command:
-        u = u.copy()
-        if self._u_prev is not None:
-            step = self.problem.steer_step_max
-            u[1] = min(max(u[1], self._u_prev[1] - step), self._u_prev[1] + step)
-        u = np.clip(u, self.problem.u_min, self.problem.u_max)
-        self._u_prev = u
+    def _command(self, u: np.ndarray) -> Command:
+        u = self._guard.apply(u)
         return Command(speed=float(u[0]), steer=float(u[1]))

@@ -21,6 +21,7 @@ import numpy as np
 
 from rkmpc._validation import require_nonnegative, require_positive
 from rkmpc.control.base import Command, Controller, Observation
+from rkmpc.control.guard import CommandGuard
 from rkmpc.control.qp import make_qp
 from rkmpc.errors import ParameterError
 from rkmpc.vehicle.kinematic import linearize_discrete
@@ -315,10 +316,8 @@ class LinearMPC(Controller):
         self.config = config if config is not None else LMPCConfig()
         self.problem = KinematicMPCProblem(self.config, vehicle, extra_states=self.extra_states)
         self._qp = make_qp(self.config.solver, max_iterations=self.config.max_iterations)
+        self._guard = CommandGuard(vehicle, self.config.dt, self.config.horizon)
         self._s_hint: float | None = None
-        self._u_prev: np.ndarray | None = None
-        self._plan: np.ndarray | None = None
-        self._plan_age = 0
         #: Last predicted absolute input sequence, shape (N, 2), and reference horizon.
         self.last_plan: np.ndarray | None = None
         #: The prediction of the last step, or None before the first.
@@ -326,9 +325,7 @@ class LinearMPC(Controller):
 
     def _reset(self) -> None:
         self._s_hint = None
-        self._u_prev = None
-        self._plan = None
-        self._plan_age = 0
+        self._guard.reset()
         self.last_plan = None
         self.last_prediction = None
 
@@ -352,11 +349,11 @@ class LinearMPC(Controller):
         self._s_hint = proj.s
         ref = self.reference.horizon(proj.s, n, cfg.dt)
         u_ref = self._reference_inputs(ref)
-        if self._u_prev is None:
+        if self._guard.previous is None:
             # First step: the car is taken to hold its speed and the feed-forward angle.
-            self._u_prev = np.array([observation.speed, u_ref[0, 1]])
+            self._guard.previous = np.array([observation.speed, u_ref[0, 1]])
         xi0, Phi, Gamma = self._prediction(observation, ref, u_ref)
-        H, f, lb, ub, lbA, ubA = self.problem.qp_numbers(xi0, u_ref, self._u_prev, Phi, Gamma)
+        H, f, lb, ub, lbA, ubA = self.problem.qp_numbers(xi0, u_ref, self._guard.previous, Phi, Gamma)
         if not self._qp.is_setup:
             self._qp.setup(H, f, lb, ub, self.problem.A_rate, lbA, ubA)
         else:
@@ -392,29 +389,11 @@ class LinearMPC(Controller):
     def _step(self, observation: Observation) -> tuple[Command, str, str]:
         plan, u_ref, solved, status = self.solve_plan(observation)
         if solved:
-            self._plan = plan
-            self._plan_age = 0
-            u = plan[0]
+            u = self._guard.accept(plan)
             flag, message = "ok", ""
         else:
-            u = self._fallback(u_ref)
+            u = self._guard.fallback(u_ref[0])
             flag, message = "fallback", f"QP failed: {status}"
-        u = self._clip(u)
-        self._u_prev = u
+        u = self._guard.apply(u)
         self.last_plan = plan if solved else None
         return Command(speed=float(u[0]), steer=float(u[1])), flag, message
-
-    def _fallback(self, u_ref: np.ndarray) -> np.ndarray:
-        """The previous plan shifted by one step, or the reference feed-forward."""
-        self._plan_age += 1
-        if self._plan is not None and self._plan_age < self.config.horizon:
-            return self._plan[self._plan_age].copy()
-        return u_ref[0].copy()
-
-    def _clip(self, u: np.ndarray) -> np.ndarray:
-        """Clip to the input bounds and the steering step allowed by the rate limit."""
-        steer = float(u[1])
-        if self._u_prev is not None:
-            step = self.problem.steer_step_max
-            steer = min(max(steer, self._u_prev[1] - step), self._u_prev[1] + step)
-        return np.clip(np.array([u[0], steer]), self.problem.u_min, self.problem.u_max)

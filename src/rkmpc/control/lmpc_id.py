@@ -73,10 +73,12 @@ class IdentifiedLMPC(LinearMPC):
         """Measured wheel angle, or the servo model's estimate when not measured."""
         if math.isfinite(observation.steer_angle):
             return observation.steer_angle
-        if self._wheel_estimate is None or self._u_prev is None:
-            self._wheel_estimate = 0.0 if self._u_prev is None else float(self._u_prev[1])
+        if self._wheel_estimate is None or self._guard.previous is None:
+            self._wheel_estimate = 0.0 if self._guard.previous is None else float(self._guard.previous[1])
         else:
-            self._wheel_estimate = self._a * self._wheel_estimate + (1.0 - self._a) * float(self._u_prev[1])
+            self._wheel_estimate = self._a * self._wheel_estimate + (1.0 - self._a) * float(
+                self._guard.previous[1]
+            )
         return self._wheel_estimate
 
     def _prediction(

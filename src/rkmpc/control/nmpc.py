@@ -39,6 +39,7 @@ import numpy as np
 
 from rkmpc._validation import require_nonnegative, require_positive
 from rkmpc.control.base import Command, Controller, Observation
+from rkmpc.control.guard import CommandGuard
 from rkmpc.control.lmpc import MPC_WEIGHTS, wrap_angle
 from rkmpc.control.nmpc_models import dynamic_ode, kinematic_ode, rk4_map
 from rkmpc.errors import ParameterError
@@ -190,9 +191,9 @@ class KinematicNMPC(Controller):
         cfg = self.config
         self.substeps = cfg.substeps if cfg.substeps is not None else self.default_substeps
         self.hessian = cfg.hessian if cfg.hessian is not None else self.default_hessian
-        self.steer_step_max = vehicle.steering.max_rate * cfg.dt
-        self.u_min = np.array([vehicle.drive.min_speed, -vehicle.steering.max_angle])
-        self.u_max = np.array([vehicle.drive.max_speed, vehicle.steering.max_angle])
+        self._guard = CommandGuard(vehicle, cfg.dt, self.config.horizon)
+        self.steer_step_max = self._guard.steer_step_max
+        self.u_min, self.u_max = self._guard.u_min, self._guard.u_max
         #: Discrete model map ``F(x, u) -> x_next`` (CasADi SX function).
         self.model_map = rk4_map(self._ode(), cfg.dt, self.substeps)
         self._solver = self._build_solver()
@@ -291,9 +292,7 @@ class KinematicNMPC(Controller):
     # ------------------------------------------------------------------ controller
     def _reset(self) -> None:
         self._s_hint: float | None = None
-        self._u_prev: np.ndarray | None = None
-        self._plan: np.ndarray | None = None
-        self._plan_age = 0
+        self._guard.reset()
         # Warm start in track coordinates: states (N+1, nx), inputs (N, 2), duals.
         self._ws_states: np.ndarray | None = None
         self._ws_inputs: np.ndarray | None = None
@@ -310,15 +309,15 @@ class KinematicNMPC(Controller):
         self._s_hint = proj.s
         ref = self.reference.horizon(proj.s, n, cfg.dt)
         u_ref = np.column_stack([ref.v[:n], ref.delta[:n]])
-        if self._u_prev is None:
-            self._u_prev = self._first_previous_input(observation, u_ref)
+        if self._guard.previous is None:
+            self._guard.previous = self._first_previous_input(observation, u_ref)
         yaw = ref.theta[0] + wrap_angle(observation.yaw - ref.theta[0])
         x0 = self._initial_state(observation, yaw)
         origin = np.array([ref.x[0], ref.y[0]])
         x0_rel = x0.copy()
         x0_rel[:2] -= origin
         pose_r = np.column_stack([ref.x[1:] - origin[0], ref.y[1:] - origin[1], ref.theta[1:]])
-        p = np.concatenate([x0_rel, pose_r.ravel(), u_ref.ravel(), self._u_prev])
+        p = np.concatenate([x0_rel, pose_r.ravel(), u_ref.ravel(), self._guard.previous])
 
         lbx = np.full(self._n_w, -np.inf)
         ubx = np.full(self._n_w, np.inf)
@@ -357,19 +356,17 @@ class KinematicNMPC(Controller):
             self._ws_lam_g = np.asarray(sol["lam_g"], dtype=float).ravel()
         if solved:
             assert self._ws_inputs is not None and self._ws_states is not None
-            self._plan = self._ws_inputs.copy()
-            self._plan_age = 0
-            self.last_plan = self._plan
+            plan = self._ws_inputs.copy()
+            u = self._guard.accept(plan)
+            self.last_plan = plan
             self.last_states = self._ws_states
-            u = self._plan[0].copy()
             flag, message = "ok", ""
         else:
-            u = self._fallback(u_ref)
+            u = self._guard.fallback(u_ref[0])
             self.last_plan = None
             self.last_states = None
             flag, message = "fallback", f"NLP failed: {status}"
-        u = self._clip(u)
-        self._u_prev = u
+        u = self._guard.apply(u)
         return Command(speed=float(u[0]), steer=float(u[1])), flag, message
 
     def _accept(self, stats: dict[str, Any], status: str) -> bool:
@@ -401,21 +398,6 @@ class KinematicNMPC(Controller):
             lam_g[nx:nxv] = _shift(self._ws_lam_g[nx:nxv].reshape(n, nx)).ravel()
             lam_g[nxv:] = _shift(self._ws_lam_g[nxv:])
         return states, inputs, lam_x, lam_g
-
-    def _fallback(self, u_ref: np.ndarray) -> np.ndarray:
-        """The previous plan shifted by one step, or the reference inputs."""
-        self._plan_age += 1
-        if self._plan is not None and self._plan_age < self.config.horizon:
-            return self._plan[self._plan_age].copy()
-        return u_ref[0].copy()
-
-    def _clip(self, u: np.ndarray) -> np.ndarray:
-        """Clip to the input bounds and the steering step allowed by the rate limit."""
-        steer = float(u[1])
-        if self._u_prev is not None:
-            prev = float(self._u_prev[1])
-            steer = min(max(steer, prev - self.steer_step_max), prev + self.steer_step_max)
-        return np.clip(np.array([u[0], steer]), self.u_min, self.u_max)
 
     def predict(self, x0: np.ndarray, inputs: np.ndarray) -> np.ndarray:
         """Roll the discrete model out from ``x0`` under ``inputs`` (N, 2); returns (N+1, nx)."""
@@ -486,11 +468,11 @@ class DynamicNMPC(KinematicNMPC):
         """Measured wheel angle, or the servo model's estimate from the previous commands."""
         if math.isfinite(observation.steer_angle):
             return observation.steer_angle
-        if self._wheel_estimate is None or self._u_prev is None:
-            self._wheel_estimate = 0.0 if self._u_prev is None else float(self._u_prev[1])
+        if self._wheel_estimate is None or self._guard.previous is None:
+            self._wheel_estimate = 0.0 if self._guard.previous is None else float(self._guard.previous[1])
         else:
             a = self._servo_a
-            self._wheel_estimate = a * self._wheel_estimate + (1.0 - a) * float(self._u_prev[1])
+            self._wheel_estimate = a * self._wheel_estimate + (1.0 - a) * float(self._guard.previous[1])
         return self._wheel_estimate
 
     def _initial_state(self, observation: Observation, yaw: float) -> np.ndarray:

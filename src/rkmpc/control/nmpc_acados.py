@@ -46,6 +46,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from rkmpc.control.base import Command, Controller, Observation
+from rkmpc.control.guard import CommandGuard
 from rkmpc.control.lmpc import wrap_angle
 from rkmpc.control.nmpc import NMPCConfig
 from rkmpc.vehicle.params import VehicleParams
@@ -133,9 +134,9 @@ class AcadosKinematicNMPC(Controller):
         self.vehicle = vehicle
         self.config = config if config is not None else NMPCConfig()
         self.qp_solver = qp_solver
-        self.steer_step_max = vehicle.steering.max_rate * self.config.dt
-        self.u_min = np.array([vehicle.drive.min_speed, -vehicle.steering.max_angle])
-        self.u_max = np.array([vehicle.drive.max_speed, vehicle.steering.max_angle])
+        self._guard = CommandGuard(vehicle, self.config.dt, self.config.horizon)
+        self.steer_step_max = self._guard.steer_step_max
+        self.u_min, self.u_max = self._guard.u_min, self._guard.u_max
         root = Path(cache_dir) if cache_dir is not None else acados_cache_dir()
         self.build_dir = root / self._problem_hash()
         self._solver = self._build_solver()
@@ -256,9 +257,7 @@ class AcadosKinematicNMPC(Controller):
     # ------------------------------------------------------------------ controller
     def _reset(self) -> None:
         self._s_hint: float | None = None
-        self._u_prev: np.ndarray | None = None
-        self._plan: np.ndarray | None = None
-        self._plan_age = 0
+        self._guard.reset()
         # Previous solution in track coordinates: states (N+1, 5), controls (N, 2).
         self._ws_states: np.ndarray | None = None
         self._ws_controls: np.ndarray | None = None
@@ -274,11 +273,11 @@ class AcadosKinematicNMPC(Controller):
         self._s_hint = proj.s
         ref = self.reference.horizon(proj.s, n, cfg.dt)
         u_ref = np.column_stack([ref.v[:n], ref.delta[:n]])
-        if self._u_prev is None:
-            self._u_prev = np.array([observation.speed, u_ref[0, 1]])
+        if self._guard.previous is None:
+            self._guard.previous = np.array([observation.speed, u_ref[0, 1]])
         yaw = ref.theta[0] + wrap_angle(observation.yaw - ref.theta[0])
         origin = np.array([ref.x[0], ref.y[0]])
-        x0 = np.array([observation.x - origin[0], observation.y - origin[1], yaw, *self._u_prev])
+        x0 = np.array([observation.x - origin[0], observation.y - origin[1], yaw, *self._guard.previous])
 
         # Initial guess: the shifted previous solution in the new frame, or the reference.
         if self._ws_states is not None and self._ws_controls is not None:
@@ -330,32 +329,15 @@ class AcadosKinematicNMPC(Controller):
             sol_x = sol_x.copy()
             sol_x[:, :2] += origin
             self._ws_states, self._ws_controls = sol_x, sol_u
-            self._plan = sol_x[1:, 3:5].copy()
-            self._plan_age = 0
-            self.last_plan = self._plan
+            plan = sol_x[1:, 3:5].copy()
+            u = self._guard.accept(plan)
+            self.last_plan = plan
             self.last_states = sol_x
-            u = self._plan[0].copy()
             flag, message = "ok", ""
         else:
-            u = self._fallback(u_ref)
+            u = self._guard.fallback(u_ref[0])
             self.last_plan = None
             self.last_states = None
             flag, message = "fallback", f"acados RTI failed: status {self.last_status}"
-        u = self._clip(u)
-        self._u_prev = u
+        u = self._guard.apply(u)
         return Command(speed=float(u[0]), steer=float(u[1])), flag, message
-
-    def _fallback(self, u_ref: np.ndarray) -> np.ndarray:
-        """The previous plan shifted by one step, or the reference inputs."""
-        self._plan_age += 1
-        if self._plan is not None and self._plan_age < self.config.horizon:
-            return self._plan[self._plan_age].copy()
-        return u_ref[0].copy()
-
-    def _clip(self, u: np.ndarray) -> np.ndarray:
-        """Clip to the input bounds and the steering step allowed by the rate limit."""
-        steer = float(u[1])
-        if self._u_prev is not None:
-            prev = float(self._u_prev[1])
-            steer = min(max(steer, prev - self.steer_step_max), prev + self.steer_step_max)
-        return np.clip(np.array([u[0], steer]), self.u_min, self.u_max)

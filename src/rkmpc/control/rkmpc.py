@@ -31,6 +31,7 @@ import numpy as np
 
 from rkmpc._validation import require_nonnegative
 from rkmpc.control.base import Command, Controller, Observation
+from rkmpc.control.guard import CommandGuard
 from rkmpc.control.lifted import lifted_prediction
 from rkmpc.control.lmpc import LinearMPC, LMPCConfig, Prediction
 from rkmpc.control.qp import make_qp
@@ -133,12 +134,12 @@ class _ResidualBase(Controller):
         self.horizon = n
         self._qp = make_qp(self.config.solver, max_iterations=self.config.max_iterations)
         self._d_max = np.tile([self.config.max_speed_correction, self.config.max_steer_correction], n)
-        self._u_min = np.tile(self.lmpc.problem.u_min, n)
-        self._u_max = np.tile(self.lmpc.problem.u_max, n)
+        self._guard = CommandGuard(vehicle, self.lmpc.config.dt, n)
+        self._u_min = np.tile(self._guard.u_min, n)
+        self._u_max = np.tile(self._guard.u_max, n)
         w = [self.config.position_weight, self.config.position_weight, self.config.heading_weight]
         self._q = np.tile(w, n)
         self._r = np.tile([self.config.speed_weight, self.config.steer_weight], n)
-        self._u_prev: np.ndarray | None = None
         #: Last correction applied (first step), shape (2,).
         self.last_correction = np.zeros(2)
         self._precompute()
@@ -148,7 +149,7 @@ class _ResidualBase(Controller):
 
     def _reset(self) -> None:
         self.lmpc.reset()
-        self._u_prev = None
+        self._guard.reset()
         self.last_correction = np.zeros(2)
 
     def _step(self, observation: Observation) -> tuple[Command, str, str]:
@@ -181,12 +182,7 @@ class _ResidualBase(Controller):
         return self._apply(plan[:2], result.x[:2]), "ok", ""
 
     def _apply(self, base: np.ndarray, correction: np.ndarray) -> Command:
-        u = base + correction
-        if self._u_prev is not None:
-            step = self.lmpc.problem.steer_step_max
-            u[1] = min(max(u[1], self._u_prev[1] - step), self._u_prev[1] + step)
-        u = np.clip(u, self.lmpc.problem.u_min, self.lmpc.problem.u_max)
-        self._u_prev = u
+        u = self._guard.apply(base + correction)
         self.last_correction = u - base
         return Command(speed=float(u[0]), steer=float(u[1]))
 

@@ -1,0 +1,66 @@
+"""What every MPC does with its answer: limit it, remember it, fall back when it fails."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rkmpc.vehicle.params import VehicleParams
+
+
+class CommandGuard:
+    """Input bounds, the steering-rate limit and the fall-back plan of a controller.
+
+    Parameters
+    ----------
+    vehicle : VehicleParams
+        Speed and steering limits.
+    dt : float
+        Control period (s); the wheel angle may change by ``max_rate * dt`` per step.
+    horizon : int
+        Length of the plans (steps); a plan older than that is not used.
+
+    Attributes
+    ----------
+    u_min, u_max : numpy.ndarray
+        ``[speed (m/s), steer (rad)]`` bounds, shape (2,).
+    steer_step_max : float
+        Largest change of the steering command per step (rad).
+    previous : numpy.ndarray or None
+        The last command applied, shape (2,), or None before the first.
+    """
+
+    def __init__(self, vehicle: VehicleParams, dt: float, horizon: int) -> None:
+        self.u_min = np.array([vehicle.drive.min_speed, -vehicle.steering.max_angle])
+        self.u_max = np.array([vehicle.drive.max_speed, vehicle.steering.max_angle])
+        self.steer_step_max = vehicle.steering.max_rate * dt
+        self.horizon = horizon
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the previous command and the plan."""
+        self.previous: np.ndarray | None = None
+        self._plan: np.ndarray | None = None
+        self._age = 0
+
+    def accept(self, plan: np.ndarray) -> np.ndarray:
+        """Keep a solved plan (absolute inputs, shape (N, 2)) and return its first input."""
+        self._plan = plan
+        self._age = 0
+        return np.array(plan[0], dtype=float)
+
+    def fallback(self, u_ref: np.ndarray) -> np.ndarray:
+        """The last solved plan shifted by one more step, or ``u_ref`` (shape (2,)) once it runs out."""
+        self._age += 1
+        if self._plan is not None and self._age < self.horizon:
+            return np.array(self._plan[self._age], dtype=float)
+        return np.array(u_ref, dtype=float)
+
+    def apply(self, u: np.ndarray) -> np.ndarray:
+        """Clip ``u`` to the bounds and the steering step, remember it and return it."""
+        steer = float(u[1])
+        if self.previous is not None:
+            prev = float(self.previous[1])
+            steer = min(max(steer, prev - self.steer_step_max), prev + self.steer_step_max)
+        applied = np.clip(np.array([u[0], steer], dtype=float), self.u_min, self.u_max)
+        self.previous = applied
+        return applied
