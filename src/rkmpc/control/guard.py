@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from rkmpc.vehicle.params import VehicleParams
@@ -64,3 +66,33 @@ class CommandGuard:
         applied = np.clip(np.array([u[0], steer], dtype=float), self.u_min, self.u_max)
         self.previous = applied
         return applied
+
+
+class WheelAngleEstimate:
+    """The front wheel angle: measured when available, else a first-order servo model.
+
+    Parameters
+    ----------
+    time_constant : float
+        Servo time constant (s).
+    dt : float
+        Control period (s).
+    """
+
+    def __init__(self, time_constant: float, dt: float) -> None:
+        self.a = math.exp(-dt / time_constant)
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the estimate."""
+        self._estimate: float | None = None
+
+    def __call__(self, measured: float, previous_command: np.ndarray | None) -> float:
+        """Wheel angle (rad): ``measured`` if finite, else the servo's response to the commands so far."""
+        if math.isfinite(measured):
+            return measured
+        if self._estimate is None or previous_command is None:
+            self._estimate = 0.0 if previous_command is None else float(previous_command[1])
+        else:
+            self._estimate = self.a * self._estimate + (1.0 - self.a) * float(previous_command[1])
+        return self._estimate

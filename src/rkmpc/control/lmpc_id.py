@@ -14,12 +14,12 @@ laps of data identify physically (see :mod:`rkmpc.learning.identification`):
 
 from __future__ import annotations
 
-import math
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from rkmpc.control.base import Observation
+from rkmpc.control.guard import WheelAngleEstimate
 from rkmpc.control.lmpc import LinearMPC, LMPCConfig, condense, wrap_angle
 from rkmpc.learning.identification import IdentifiedModel
 from rkmpc.vehicle.params import VehicleParams
@@ -55,12 +55,12 @@ class IdentifiedLMPC(LinearMPC):
     ) -> None:
         super().__init__(reference, vehicle, config)
         self.model = model
-        self._a = math.exp(-self.config.dt / model.servo_time_constant)
-        self._wheel_estimate: float | None = None
+        self._wheel = WheelAngleEstimate(model.servo_time_constant, self.config.dt)
+        self._a = self._wheel.a
 
     def _reset(self) -> None:
         super()._reset()
-        self._wheel_estimate = None
+        self._wheel.reset()
 
     def _reference_inputs(self, ref: ReferenceHorizon) -> np.ndarray:
         n = self.config.horizon
@@ -68,18 +68,6 @@ class IdentifiedLMPC(LinearMPC):
         v = ref.v[:n]
         kappa = np.tan(ref.delta[:n]) / L
         return np.column_stack([v, np.arctan((L + K * v * v) * kappa)])
-
-    def _wheel_angle(self, observation: Observation) -> float:
-        """Measured wheel angle, or the servo model's estimate when not measured."""
-        if math.isfinite(observation.steer_angle):
-            return observation.steer_angle
-        if self._wheel_estimate is None or self._guard.previous is None:
-            self._wheel_estimate = 0.0 if self._guard.previous is None else float(self._guard.previous[1])
-        else:
-            self._wheel_estimate = self._a * self._wheel_estimate + (1.0 - self._a) * float(
-                self._guard.previous[1]
-            )
-        return self._wheel_estimate
 
     def _prediction(
         self, observation: Observation, ref: ReferenceHorizon, u_ref: np.ndarray
@@ -93,7 +81,7 @@ class IdentifiedLMPC(LinearMPC):
                 observation.x - ref.x[0],
                 observation.y - ref.y[0],
                 wrap_angle(observation.yaw - ref.theta[0]),
-                self._wheel_angle(observation) - delta[0],
+                self._wheel(observation.steer_angle, self._guard.previous) - delta[0],
             ]
         )
         l_eff = L + K * v * v

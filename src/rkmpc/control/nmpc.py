@@ -39,7 +39,7 @@ import numpy as np
 
 from rkmpc._validation import require_nonnegative, require_positive
 from rkmpc.control.base import Command, Controller, Observation
-from rkmpc.control.guard import CommandGuard
+from rkmpc.control.guard import CommandGuard, WheelAngleEstimate
 from rkmpc.control.lmpc import MPC_WEIGHTS, wrap_angle
 from rkmpc.control.nmpc_models import dynamic_ode, kinematic_ode, rk4_map
 from rkmpc.errors import ParameterError
@@ -450,7 +450,7 @@ class DynamicNMPC(KinematicNMPC):
         self.min_speed = float(vehicle.blend_speed_high if min_speed is None else min_speed)
         if not (math.isfinite(self.min_speed) and self.min_speed > 0):
             raise ParameterError(f"DynamicNMPC.min_speed must be > 0, got {self.min_speed}")
-        self._servo_a = math.exp(-(config or NMPCConfig()).dt / vehicle.steering.time_constant)
+        self._wheel = WheelAngleEstimate(vehicle.steering.time_constant, (config or NMPCConfig()).dt)
         super().__init__(reference, vehicle, config)
 
     def _ode(self) -> Any:
@@ -458,26 +458,15 @@ class DynamicNMPC(KinematicNMPC):
 
     def _reset(self) -> None:
         super()._reset()
-        self._wheel_estimate: float | None = None
+        self._wheel.reset()
 
     def _first_previous_input(self, observation: Observation, u_ref: np.ndarray) -> np.ndarray:
         steer = observation.steer_angle if math.isfinite(observation.steer_angle) else u_ref[0, 1]
         return np.array([observation.speed, steer])
 
-    def _wheel_angle(self, observation: Observation) -> float:
-        """Measured wheel angle, or the servo model's estimate from the previous commands."""
-        if math.isfinite(observation.steer_angle):
-            return observation.steer_angle
-        if self._wheel_estimate is None or self._guard.previous is None:
-            self._wheel_estimate = 0.0 if self._guard.previous is None else float(self._guard.previous[1])
-        else:
-            a = self._servo_a
-            self._wheel_estimate = a * self._wheel_estimate + (1.0 - a) * float(self._guard.previous[1])
-        return self._wheel_estimate
-
     def _initial_state(self, observation: Observation, yaw: float) -> np.ndarray:
         length = self.vehicle.wheelbase
-        delta = self._wheel_angle(observation)
+        delta = self._wheel(observation.steer_angle, self._guard.previous)
         if math.isfinite(observation.slip_angle):
             beta = observation.slip_angle
         else:
