@@ -3,7 +3,7 @@ PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 
-.PHONY: demo test lint bench tracks-table learning-table clean
+.PHONY: demo test lint bench tracks-table learning-table study-tracks study-data results clean
 
 # PyTorch first and pinned exactly: a looser pin pulls a multi-gigabyte CUDA build.
 $(BIN)/python:
@@ -19,13 +19,10 @@ $(VENV)/.installed-test: pyproject.toml | $(BIN)/python
 	$(BIN)/python -m pip install --quiet -e '.[test]'
 	touch $@ $(VENV)/.installed
 
-# Two LMPC laps of data, the residual model and lmpc-id learned from them, then every controller.
+# The paper's Table I on the built-in track: two LMPC laps of data, the residual models and
+# lmpc-id learned from them, the KMPC model (trained once, then cached), then every controller.
 demo: $(VENV)/.installed
-	$(BIN)/rkmpc collect --controller lmpc --laps 2 --track builtin --out runs/demo/data.npz
-	$(BIN)/rkmpc train --data runs/demo/data.npz --kind residual --out runs/demo/residual.rkm
-	$(BIN)/rkmpc train --data runs/demo/data.npz --kind identified --out runs/demo/identified.json
-	$(BIN)/rkmpc compare --track builtin --controllers pp,lmpc,lmpc-id,rkmpc \
-		--model rkmpc=runs/demo/residual.rkm --model lmpc-id=runs/demo/identified.json --out runs/demo
+	$(BIN)/rkmpc compare --track builtin --out runs/demo
 
 test: $(VENV)/.installed-test
 	$(BIN)/ruff check src tests benchmarks
@@ -40,6 +37,19 @@ tracks-table: $(VENV)/.installed
 
 learning-table: $(VENV)/.installed
 	$(BIN)/python benchmarks/learning_table.py --out runs/learning
+
+# Every controller on the built-in and every shared track (runs in parallel on the local cores).
+study-tracks: $(VENV)/.installed
+	$(BIN)/rkmpc study tracks --tracks builtin,../shared/tracks/centerlines --out runs/study-tracks
+
+# RKMPC against KMPC as the training data grow, three seeds.
+study-data: $(VENV)/.installed
+	$(BIN)/rkmpc study data --track builtin --out runs/study-data
+
+# docs/results.md from a full run: demo, both studies and the step-time benchmark.
+results: demo study-tracks study-data bench
+	$(BIN)/python benchmarks/results_doc.py --demo runs/demo --tracks runs/study-tracks \
+		--data runs/study-data --bench runs/bench/step_times.json --out docs/results.md
 
 clean:
 	rm -rf runs .pytest_cache .mypy_cache .ruff_cache

@@ -9,6 +9,12 @@ import pytest
 SHARED_TRACKS = Path(__file__).resolve().parents[1].parent / "shared" / "tracks"
 
 
+@pytest.fixture(autouse=True)
+def _private_model_cache(tmp_path_factory, monkeypatch):
+    """Trained models go to a temporary cache, never the user's."""
+    monkeypatch.setenv("RKMPC_CACHE_DIR", str(tmp_path_factory.getbasetemp() / "model-cache"))
+
+
 @pytest.fixture(scope="session")
 def shared_tracks() -> Path:
     """The TUM tracks beside the repository; skips the test when absent."""

@@ -130,9 +130,13 @@ def test_model_of_the_wrong_kind_is_refused(tmp_path, capsys):
     assert "paper" in capsys.readouterr().err
 
 
-def test_learned_controller_without_model(tmp_path, capsys):
-    assert main(["run", "--controller", "rkmpc", "--out", str(tmp_path / "o")]) == 2
-    assert "--model" in capsys.readouterr().err
+def test_run_of_a_learned_controller_without_model_trains_it(tmp_path):
+    out = tmp_path / "o"
+    args = ["run", "--controller", "lmpc-id", "--track", "oval", "--no-cache", "--out", str(out)]
+    assert main(args) == 0
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["training"]["lmpc-id"]["raw_samples"] > 200
+    assert metrics["completed"] is True
 
 
 def test_collect_from_a_run_log(tmp_path):
@@ -145,3 +149,109 @@ def test_collect_from_a_run_log(tmp_path):
     loaded = TransitionDataset.load(data)
     assert len(loaded) > 100
     assert loaded.metadata["controller"] == "pp"
+
+
+RESULT_KEYS = {
+    "completed": bool,
+    "progress": float,
+    "lap_time_s": (float, type(None)),
+    "lateral_error_mean_m": float,
+    "lateral_error_max_m": float,
+    "heading_error_mean_rad": float,
+    "steer_rate_mean_rad_s": float,
+    "solve_ms_mean": float,
+    "solve_ms_p99": float,
+    "solve_ms_max": float,
+}
+
+
+def _learning_compare(out, cache):
+    return main(
+        [
+            "compare",
+            "--controllers",
+            "pp,lmpc,lmpc-id,kmpc,rkmpc",
+            "--track",
+            "oval",
+            "--epochs",
+            "2",
+            "--kmpc-samples",
+            "1000",
+            "--cache-dir",
+            str(cache),
+            "--out",
+            str(out),
+        ]
+    )
+
+
+def test_compare_learns_and_writes_the_results_schema(tmp_path):
+    out, cache = tmp_path / "cmp", tmp_path / "cache"
+    assert _learning_compare(out, cache) == 0
+    results = json.loads((out / "results.json").read_text())
+    assert list(results["controllers"]) == ["pp", "lmpc", "lmpc-id", "kmpc", "rkmpc"]
+    for name, metrics in results["controllers"].items():
+        for key, kind in RESULT_KEYS.items():
+            assert isinstance(metrics[key], kind), (name, key, metrics[key])
+        assert 0.0 <= metrics["progress"] <= 1.0
+        assert metrics["solve_ms_mean"] <= metrics["solve_ms_p99"] <= metrics["solve_ms_max"]
+    training = results["training"]
+    assert training["data"]["raw_samples"] > 200
+    for name in ("kmpc", "rkmpc"):
+        info = training[name]
+        assert info["augmented_samples"] > info["raw_samples"] > 0 or name == "kmpc"
+        assert info["fit_time_s"] > 0 and info["cached"] is False
+    assert training["kmpc"]["raw_samples"] == 1000
+    assert training["lmpc-id"]["raw_samples"] == training["data"]["raw_samples"]
+    assert results["config"]["seed"] == 0 and "numpy" in results["config"]["versions"]
+    table = (out / "table.md").read_text()
+    assert all(f"| {n} |" in table for n in results["controllers"])
+    for plot in ("plot.png", "solve_times.png"):
+        assert (out / plot).stat().st_size > 10_000
+    assert len(list(cache.glob("*.rkm"))) == 2  # the KMPC and the residual model
+
+
+def test_second_compare_reuses_the_cached_models(tmp_path):
+    cache = tmp_path / "cache"
+    assert _learning_compare(tmp_path / "a", cache) == 0
+    assert _learning_compare(tmp_path / "b", cache) == 0
+    a = json.loads((tmp_path / "a" / "results.json").read_text())
+    b = json.loads((tmp_path / "b" / "results.json").read_text())
+    assert b["training"]["kmpc"]["cached"] is True and b["training"]["rkmpc"]["cached"] is True
+    assert b["training"]["kmpc"]["cache_key"] == a["training"]["kmpc"]["cache_key"]
+    for name in ("kmpc", "rkmpc"):
+        assert (
+            b["controllers"][name]["lateral_error_mean_m"] == a["controllers"][name]["lateral_error_mean_m"]
+        )
+
+
+def test_model_for_a_controller_without_one_is_an_error(tmp_path, capsys):
+    code = main(["compare", "--controllers", "lmpc,pp", "--model", "pp=x.rkm", "--out", str(tmp_path)])
+    assert code == 2
+    assert "takes no model" in capsys.readouterr().err
+
+
+def test_compare_with_a_fault_reports_its_effect(tmp_path, capsys):
+    out = tmp_path / "fault"
+    args = ["compare", "--controllers", "pp,lmpc", "--track", "oval", "--fault", "delay", "--out", str(out)]
+    assert main(args) == 0
+    results = json.loads((out / "results.json").read_text())
+    assert results["fault"] == "delay"
+    assert set(results["faulted"]) == set(results["fault_effect"]) == {"pp", "lmpc"}
+    assert set(results["fault_effect"].values()) <= {
+        "completes",
+        "degrades",
+        "leaves the track",
+        "does not finish",
+    }
+    faulted_runs = [r for r in results["config"]["runs"] if r.get("fault")]
+    assert len(faulted_runs) == 2 and faulted_runs[0]["fault"]["name"] == "delay"
+    assert "with delay" in (out / "table.md").read_text()
+    assert (out / "plot_fault.png").stat().st_size > 10_000
+    assert (out / "log_lmpc+delay.csv").exists()
+
+
+def test_unknown_fault_is_a_clear_error(tmp_path, capsys):
+    code = main(["compare", "--controllers", "pp", "--fault", "rain", "--out", str(tmp_path)])
+    assert code == 2
+    assert "rain" in capsys.readouterr().err

@@ -33,18 +33,51 @@ def _add_scenario_args(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def _add_learning_args(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--data-laps",
+        type=int,
+        default=2,
+        help="LMPC laps of on-track data the learned controllers learn from",
+    )
+    parser.add_argument(
+        "--kmpc-samples", type=int, default=50_000, help="random-excitation samples of the KMPC model"
+    )
+    parser.add_argument(
+        "--fault",
+        default=None,
+        help="also drive every controller with this fault (noise, delay, friction, heavy); report the effect",
+    )
+    parser.add_argument(
+        "--cache-dir",
+        type=Path,
+        default=None,
+        help="trained-model cache (default: $RKMPC_CACHE_DIR, else ~/.cache/rkmpc)",
+    )
+    parser.add_argument("--no-cache", action="store_true", help="train every model afresh, store nothing")
+    parser.add_argument("--epochs", type=int, default=None, help="training epochs of the learned models")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``rkmpc`` command."""
     from rkmpc.control.factory import CONTROLLERS
+    from rkmpc.experiments.learned import ALL_CONTROLLERS
 
     parser = argparse.ArgumentParser(prog="rkmpc", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
     run = sub.add_parser("run", help="drive one controller around a track")
     run.add_argument("--controller", required=True, choices=sorted(CONTROLLERS))
     _add_scenario_args(run)
-    compare = sub.add_parser("compare", help="drive several controllers and tabulate them")
-    compare.add_argument("--controllers", default="pp,lmpc", help="comma-separated controller names")
+    _add_learning_args(run)
+    compare = sub.add_parser(
+        "compare",
+        help="learn on the track, drive several controllers and tabulate them (the paper's Table I)",
+    )
+    compare.add_argument(
+        "--controllers", default=",".join(ALL_CONTROLLERS), help="comma-separated controller names"
+    )
     _add_scenario_args(compare)
+    _add_learning_args(compare)
     collect = sub.add_parser("collect", help="record on-track (or random-excitation) data")
     collect.add_argument("--controller", default="lmpc", choices=["pp", "lmpc"])
     collect.add_argument(
@@ -101,10 +134,9 @@ def _split(text: str) -> list[str]:
     return names
 
 
-def _model_options(names: list[str], specs: list[str]) -> dict[str, dict[str, Any]]:
-    """Controller options with the loaded models, from ``--model [NAME=]PATH`` arguments."""
+def _model_files(names: list[str], specs: list[str]) -> dict[str, str]:
+    """Model files by controller, from ``--model [NAME=]PATH`` arguments."""
     from rkmpc.control.factory import MODEL_KIND
-    from rkmpc.learning.model_io import load_model
 
     paths: dict[str, str] = {}
     for spec in specs:
@@ -114,14 +146,12 @@ def _model_options(names: list[str], specs: list[str]) -> dict[str, dict[str, An
             if len(learned) != 1:
                 raise ValueError("--model PATH needs exactly one learned controller; use NAME=PATH")
             name, path = learned[0], spec
+        if name not in names:
+            raise ValueError(f"--model {name}=...: {name!r} is not among the controllers {names}")
+        if name not in MODEL_KIND:
+            raise ValueError(f"--model {name}=...: {name!r} takes no model; learned: {sorted(MODEL_KIND)}")
         paths[name] = path
-    options: dict[str, dict[str, Any]] = {}
-    for name in names:
-        if name in MODEL_KIND:
-            if name not in paths:
-                raise ValueError(f"controller {name!r} needs --model {name}=PATH")
-            options[name] = {"model": load_model(paths[name], MODEL_KIND[name])}
-    return options
+    return paths
 
 
 def _cmd_collect(args: argparse.Namespace) -> int:
@@ -204,59 +234,70 @@ def _cmd_tracks() -> int:
 
 def _cmd_compare(args: argparse.Namespace, names: list[str], *, single: bool) -> int:
     from rich.console import Console
-    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
     from rich.table import Table
 
-    from rkmpc.analysis.plots import plot_runs, save_figure
-    from rkmpc.analysis.table import markdown_table, table_header, table_rows
-    from rkmpc.experiments.runner import DEFAULT_NOISE, RunSpec, run_controller, run_record
-    from rkmpc.scenario import load_scenario
-    from rkmpc.sim.log import write_json_atomic
+    from rkmpc.analysis.plots import plot_runs, plot_solve_times, save_figure
+    from rkmpc.analysis.table import fault_table, markdown_table, table_header, table_rows
+    from rkmpc.experiments.learned import TrackStudy, evaluate_track
+    from rkmpc.sim.log import StepLog, write_json_atomic
 
     console = Console(stderr=True)
-    scenario = load_scenario(args.track, raceline=args.raceline, scale=args.scale, vehicle=args.vehicle)
-    specs = [
-        RunSpec(controller=n, laps=args.laps, seed=args.seed, noise=DEFAULT_NOISE if args.noise else None)
-        for n in names
-    ]
-    options = _model_options(names, args.model)
+    models = _model_files(names, args.model)
+    study = TrackStudy(
+        track=args.track,
+        raceline=args.raceline,
+        scale=args.scale,
+        vehicle=args.vehicle,
+        controllers=tuple(names),
+        laps=args.data_laps,
+        run_laps=args.laps,
+        seed=args.seed,
+        noise=args.noise,
+        fault=args.fault,
+        kmpc_samples=args.kmpc_samples,
+        cache_dir=None if args.cache_dir is None else str(args.cache_dir),
+        use_cache=not args.no_cache,
+        model_files=tuple(models.items()),
+        epochs=args.epochs,
+    )
     out: Path = args.out
     out.mkdir(parents=True, exist_ok=True)
-    results: dict[str, dict[str, Any]] = {}
-    logs = {}
-    goal = float(args.laps)
-    with Progress(
-        TextColumn("{task.description}"),
-        BarColumn(),
-        TextColumn("{task.percentage:>5.1f}%"),
-        TimeElapsedColumn(),
-        console=console,
-        transient=True,
-        disable=not console.is_terminal,
-    ) as progress:
-        for spec in specs:
-            task = progress.add_task(f"{spec.controller} on {scenario.track.name}", total=goal)
+    logs: dict[str, StepLog] = {}
 
-            def on_step(_t: float, laps_done: float, task: Any = task) -> None:
-                progress.update(task, completed=min(laps_done, goal))
+    def on_run(label: str, result: Any) -> None:
+        log_name = "log.csv" if single and "+" not in label else f"log_{label}.csv"
+        result.log.to_csv(out / log_name)
+        console.print(f"  {label}: {result.outcome}, {len(result.log)} steps")
 
-            result, metrics = run_controller(
-                scenario, spec, controller_options=options.get(spec.controller), on_step=on_step
-            )
-            progress.remove_task(task)
-            results[spec.controller] = metrics
-            logs[spec.controller] = result.log
-            log_name = "log.csv" if single else f"log_{spec.controller}.csv"
-            result.log.to_csv(out / log_name)
-            console.print(f"{spec.controller}: {result.outcome}, {metrics['steps']} steps")
-    record = run_record(scenario, specs)
+    with console.status("starting", spinner="dots") as status:
+
+        def say(message: str) -> None:
+            status.update(message)
+            console.print(message)
+
+        report = evaluate_track(study, logs=logs, on_run=on_run, say=say)
+    results = report["controllers"]
     if single:
-        write_json_atomic(out / "metrics.json", {**results[names[0]], "config": record})
+        write_json_atomic(
+            out / "metrics.json",
+            {**results[names[0]], "training": report["training"], "config": report["config"]},
+        )
     else:
-        write_json_atomic(out / "results.json", {"controllers": results, "config": record})
-        (out / "table.md").write_text(markdown_table(results))
-    title = f"{scenario.track.name} (scale {scenario.track.scale:g}, {scenario.vehicle_name})"
-    save_figure(plot_runs(logs, scenario.track, title=title), out / "plot.png")
+        write_json_atomic(out / "results.json", report)
+        text = markdown_table(results)
+        if args.fault:
+            text += "\n" + fault_table(results, report["faulted"], report["fault_effect"], args.fault)
+        (out / "table.md").write_text(text)
+    cfg = report["config"]["scenario"]
+    title = f"{cfg['track']} (scale {cfg['scale']:g}, {cfg['vehicle']})"
+    nominal = {k: v for k, v in logs.items() if "+" not in k}
+    track = _scenario_track(study)
+    save_figure(plot_runs(nominal, track, title=title), out / "plot.png")
+    if not single:
+        save_figure(plot_solve_times(nominal, period_s=cfg["dt"], title=title), out / "solve_times.png")
+    if args.fault:
+        faulted = {k: v for k, v in logs.items() if "+" in k}
+        save_figure(plot_runs(faulted, track, title=f"{title}, fault: {args.fault}"), out / "plot_fault.png")
 
     with_change = "lmpc" in results and len(results) > 1
     table = Table(title=title)
@@ -264,8 +305,17 @@ def _cmd_compare(args: argparse.Namespace, names: list[str], *, single: bool) ->
         table.add_column(col)
     for row in table_rows(results, "lmpc" if with_change else None):
         table.add_row(*row)
-    Console(width=None if Console().is_terminal else 260).print(table)
+    wide = Console(width=None if Console().is_terminal else 260)
+    wide.print(table)
+    if args.fault:
+        wide.print(fault_table(results, report["faulted"], report["fault_effect"], args.fault))
     return 0
+
+
+def _scenario_track(study: Any) -> Any:
+    from rkmpc.scenario import load_scenario
+
+    return load_scenario(study.track, raceline=study.raceline, scale=study.scale, vehicle=study.vehicle).track
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -9,6 +9,7 @@ import pytest
 from vehiclemodels.parameters_vehicle2 import parameters_vehicle2
 
 from rkmpc.control.base import Command
+from rkmpc.errors import ParameterError
 from rkmpc.vehicle.fullsize import FullSizePlant
 from rkmpc.vehicle.params import fullsize
 from rkmpc.vehicle.plant import FrictionChange
@@ -95,3 +96,24 @@ def test_input_delay() -> None:
         angles_late.append(delayed.wheel_angle)
     assert angles_late[:2] == [0.0, 0.0]
     np.testing.assert_allclose(angles_late[2:], angles_now[:-2], atol=1e-6)
+
+
+def test_mass_and_grip_scale() -> None:
+    nominal = FullSizePlant()
+    scaled = FullSizePlant(mass_scale=1.3, grip_scale=0.9)
+    package = parameters_vehicle2()
+    assert scaled._model.m == pytest.approx(1.3 * package.m)
+    assert scaled._model.I_z == pytest.approx(1.3 * package.I_z)
+    for key in ("p_dx1", "p_dy1", "p_kx1", "p_ky1"):
+        assert getattr(scaled._model.tire, key) == pytest.approx(0.9 * getattr(package.tire, key))
+    assert nominal._model.m == package.m
+    # Friction acts on top of the scaled grip, and a reset restores it.
+    wet = FullSizePlant(grip_scale=0.9, friction=FrictionChange(0.5))
+    wet.reset(0.0, 0.0, 0.0, 10.0)
+    wet.step(Command(10.0, 0.0), 0.01)
+    assert wet._model.tire.p_dy1 == pytest.approx(0.45 * package.tire.p_dy1)
+    wet.reset(0.0, 0.0, 0.0, 10.0)
+    assert wet._model.tire.p_dy1 == pytest.approx(0.9 * package.tire.p_dy1)
+    for bad in ({"mass_scale": 0.0}, {"grip_scale": math.nan}):
+        with pytest.raises(ParameterError):
+            FullSizePlant(**bad)

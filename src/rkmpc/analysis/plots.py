@@ -18,6 +18,29 @@ from matplotlib.figure import Figure
 from rkmpc.sim.log import StepLog
 from rkmpc.track.track import Track
 
+#: Fixed colour and line width per controller, so every figure of a study reads alike.
+CONTROLLER_STYLE: dict[str, tuple[str, float]] = {
+    "pp": ("tab:blue", 0.9),
+    "lmpc": ("tab:orange", 1.0),
+    "lmpc-id": ("tab:olive", 0.9),
+    "nmpc": ("tab:red", 0.9),
+    "nmpc-dynamic": ("tab:purple", 0.9),
+    "nmpc-acados": ("tab:pink", 0.9),
+    "nmpc-acados-dynamic": ("tab:cyan", 0.9),
+    "kmpc": ("tab:brown", 0.9),
+    "rkmpc-paper": ("tab:gray", 0.9),
+    "rkmpc": ("tab:green", 1.6),
+}
+
+
+def controller_style(label: str) -> dict[str, object]:
+    """Matplotlib ``color`` and ``lw`` of a controller label (``name`` or ``name+fault``)."""
+    color, width = CONTROLLER_STYLE.get(label.split("+")[0], (None, 0.9))
+    style: dict[str, object] = {"lw": width}
+    if color is not None:
+        style["color"] = color
+    return style
+
 
 def plot_runs(logs: Mapping[str, StepLog], track: Track, title: str = "") -> Figure:
     """Paths on the track, and lateral error, heading error and wheel angle over distance.
@@ -50,14 +73,16 @@ def plot_runs(logs: Mapping[str, StepLog], track: Track, title: str = "") -> Fig
     ref = track.reference_path.sample(spacing)
     ax_map.plot(ref.x, ref.y, color="0.6", lw=0.8, ls="--", label="reference")
     for label, log in logs.items():
-        line = ax_map.plot(log["x"], log["y"], lw=1.0, label=label)[0]
+        style = controller_style(label)
+        line = ax_map.plot(log["x"], log["y"], label=label, **style)[0]  # type: ignore[arg-type]
         color = line.get_color()
+        width = float(style["lw"])  # type: ignore[arg-type]
         if log.metadata.get("outcome") == "off_track" and len(log):
             ax_map.plot(log["x"][-1], log["y"][-1], "x", color=color, ms=10, mew=2)
         dist = log["progress"]
-        ax_lat.plot(dist, log["lateral_error"], lw=0.8, color=color, label=label)
-        ax_head.plot(dist, log["heading_error"], lw=0.8, color=color)
-        ax_wheel.plot(dist, log["wheel_angle"], lw=0.8, color=color)
+        ax_lat.plot(dist, log["lateral_error"], lw=width, color=color, label=label)
+        ax_head.plot(dist, log["heading_error"], lw=width, color=color)
+        ax_wheel.plot(dist, log["wheel_angle"], lw=width, color=color)
     ax_map.plot(*ref_start(track), "k>", ms=8, label="start")
     ax_map.set_aspect("equal")
     ax_map.set_xlabel("x (m)")
@@ -73,6 +98,64 @@ def plot_runs(logs: Mapping[str, StepLog], track: Track, title: str = "") -> Fig
     ax_lat.legend(loc="best", fontsize=8)
     if title:
         fig.suptitle(title)
+    return fig
+
+
+def plot_solve_times(logs: Mapping[str, StepLog], period_s: float | None = None, title: str = "") -> Figure:
+    """Distribution of each controller's step time (box plot on a log scale, with mean and max).
+
+    Parameters
+    ----------
+    logs : mapping of str to StepLog
+        One log per controller; its ``solve_time_s`` column is used (s).
+    period_s : float, optional
+        Control period (s), drawn as a vertical line for scale.
+    title : str
+        Figure title.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    names = list(logs)
+    samples = []
+    for name in names:
+        ms = 1e3 * np.asarray(logs[name]["solve_time_s"], dtype=float)
+        ms = ms[np.isfinite(ms) & (ms > 0)]
+        samples.append(ms if ms.size else np.array([np.nan]))
+    fig, ax = plt.subplots(figsize=(9, 0.55 * len(names) + 1.8), layout="constrained")
+    positions = np.arange(len(names))[::-1]
+    ax.boxplot(samples, positions=positions, orientation="horizontal", whis=(1, 99), showfliers=False)
+    for pos, ms in zip(positions, samples, strict=True):
+        if np.isfinite(ms).any():
+            ax.plot(np.nanmean(ms), pos, "o", color="tab:blue", ms=4)
+            ax.plot(np.nanmax(ms), pos, "x", color="tab:red", ms=6)
+            ax.text(
+                np.nanmax(ms) * 1.15,
+                pos,
+                f"{np.nanmedian(ms):.3f} / {np.nanmax(ms):.2f} ms",
+                va="center",
+                fontsize=8,
+            )
+    ax.plot([], [], "o", color="tab:blue", ms=4, label="mean")
+    ax.plot([], [], "x", color="tab:red", ms=6, label="max")
+    if period_s is not None:
+        ax.axvline(
+            1e3 * period_s, color="0.4", ls="--", lw=0.8, label=f"control period {1e3 * period_s:g} ms"
+        )
+    ax.set_xscale("log")
+    ax.set_yticks(positions, names)
+    ax.set_xlabel(
+        "controller step time (ms), log scale; box: quartiles, whiskers: p1-p99; text: median / max"
+    )
+    ax.grid(True, axis="x", which="both", lw=0.3)
+    lo = min((np.nanmin(ms) for ms in samples if np.isfinite(ms).any()), default=0.01)
+    hi = max((np.nanmax(ms) for ms in samples if np.isfinite(ms).any()), default=1.0)
+    right = max(hi * 8, 1e3 * period_s * 1.5) if period_s is not None else hi * 8
+    ax.set_xlim(lo / 2, right)
+    ax.legend(loc="lower right", fontsize=8)
+    if title:
+        ax.set_title(title)
     return fig
 
 

@@ -69,3 +69,51 @@ def markdown_table(results: Mapping[str, Mapping[str, Any]], baseline: str | Non
     for row in table_rows(results, baseline if with_change else None):
         lines.append("| " + " | ".join(row) + " |")
     return "\n".join(lines) + "\n"
+
+
+def fault_table(
+    nominal: Mapping[str, Mapping[str, Any]],
+    faulted: Mapping[str, Mapping[str, Any]],
+    effects: Mapping[str, str],
+    fault: str,
+) -> str:
+    """Markdown table of what a fault did to each controller.
+
+    Parameters
+    ----------
+    nominal, faulted : mapping of str to metrics
+        :func:`rkmpc.analysis.metrics.lap_metrics` of each controller without and with the fault.
+    effects : mapping of str to str
+        Classification per controller (:func:`rkmpc.experiments.learned.fault_effect`).
+    fault : str
+        Name of the fault, for the title row.
+    """
+    header = [
+        "controller",
+        f"with {fault}",
+        "lap %",
+        "lat. err (m) nominal -> fault",
+        "change",
+        "lat. max (m) with fault",
+        "head. err (rad) with fault",
+        "fallbacks with fault",
+    ]
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    for name, fm in faulted.items():
+        nm = nominal[name]
+        lat = (
+            f"{format_cell(nm['lateral_error_mean_m'], '{:.4f}')} -> "
+            f"{format_cell(fm['lateral_error_mean_m'], '{:.4f}')}"
+        )
+        cells = [
+            name,
+            effects.get(name, "-"),
+            format_cell(fm["progress"], "{:.0%}"),
+            lat,
+            change_vs(fm, nm, "lateral_error_mean_m"),
+            format_cell(fm["lateral_error_max_m"], "{:.3f}"),
+            format_cell(fm["heading_error_mean_rad"], "{:.4f}"),
+            format_cell(fm["fallback_count"], "{}"),
+        ]
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"

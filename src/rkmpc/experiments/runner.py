@@ -10,13 +10,14 @@ from typing import Any
 
 from rkmpc.analysis.metrics import lap_metrics
 from rkmpc.control.factory import make_controller
+from rkmpc.errors import ParameterError
+from rkmpc.experiments.faults import DEFAULT_NOISE, NoiseFault, get_fault
 from rkmpc.scenario import Scenario, vehicle_preset
 from rkmpc.sim.closed_loop import SimConfig, SimResult, simulate
 from rkmpc.vehicle.plant import Plant, make_plant
 from rkmpc.vehicle.wrappers import NoiseStd, ObservationNoise
 
-#: Measurement noise used by ``--noise`` (1-sigma): 1 cm, 0.5 deg, 2 cm/s, 0.02 rad/s.
-DEFAULT_NOISE = NoiseStd(position=0.01, yaw=0.0087, speed=0.02, yaw_rate=0.02)
+__all__ = ["DEFAULT_NOISE", "RunSpec", "build_plant", "run_controller", "run_record", "versions"]
 
 
 @dataclass(frozen=True)
@@ -30,20 +31,43 @@ class RunSpec:
     laps : int
         Laps to drive.
     seed : int
-        Seed of every random choice of the run (measurement noise).
+        Seed of every random choice of the run (measurement noise, faults).
     noise : NoiseStd or None
         Measurement noise, or None for exact observations.
+    fault : str or None
+        Name of a fault in :data:`rkmpc.experiments.faults.FAULTS`
+        (``"noise"``, ``"delay"``, ``"friction"``, ``"heavy"``) applied to the
+        plant, or None for the nominal plant. ``"noise"`` and ``noise``
+        exclude each other.
+
+    Raises
+    ------
+    ParameterError
+        If ``fault`` is not a registered name, or is ``"noise"`` while
+        ``noise`` is given.
     """
 
     controller: str
     laps: int = 1
     seed: int = 0
     noise: NoiseStd | None = None
+    fault: str | None = None
+
+    def __post_init__(self) -> None:
+        if self.fault is not None:
+            fault = get_fault(self.fault)
+            if isinstance(fault, NoiseFault) and self.noise is not None:
+                raise ParameterError(
+                    f"RunSpec: fault {self.fault!r} adds measurement noise and so does noise={self.noise!r}; "
+                    "give one of them"
+                )
 
 
 def build_plant(scenario: Scenario, spec: RunSpec) -> Plant:
-    """The scenario's plant, wrapped with measurement noise when asked for."""
+    """The scenario's plant with the spec's fault applied, wrapped with measurement noise when asked for."""
     plant = make_plant(vehicle_preset(scenario.vehicle_name).plant)
+    if spec.fault is not None:
+        plant = get_fault(spec.fault).apply(plant, scenario, spec.seed)
     if spec.noise is not None:
         plant = ObservationNoise(plant, spec.noise, seed=spec.seed)
     return plant
@@ -77,7 +101,7 @@ def run_controller(
         SimConfig(dt=scenario.dt, laps=spec.laps),
         on_step=on_step,
     )
-    result.log.metadata.update({"controller": spec.controller, "seed": spec.seed})
+    result.log.metadata.update({"controller": spec.controller, "seed": spec.seed, "fault": spec.fault})
     return result, lap_metrics(result, laps=spec.laps)
 
 
@@ -102,6 +126,7 @@ def run_record(scenario: Scenario, specs: Sequence[RunSpec]) -> dict[str, Any]:
                 "laps": s.laps,
                 "seed": s.seed,
                 "noise": None if s.noise is None else asdict(s.noise),
+                "fault": None if s.fault is None else get_fault(s.fault).describe(),
             }
             for s in specs
         ],

@@ -36,6 +36,7 @@ from vehiclemodels.parameters_vehicle2 import parameters_vehicle2
 from vehiclemodels.vehicle_dynamics_std import vehicle_dynamics_std
 
 from rkmpc.control.base import Observation
+from rkmpc.errors import ParameterError
 from rkmpc.vehicle.params import VehicleParams, fullsize
 from rkmpc.vehicle.plant import ActuatedPlant, FrictionSchedule
 
@@ -63,7 +64,15 @@ class FullSizePlant(ActuatedPlant):
     params : VehicleParams or None, optional
         Actuator limits and the wheelbase reported to controllers;
         :func:`rkmpc.vehicle.params.fullsize` when None. Chassis and tyre
-        values always come from the package.
+        values always come from the package (scaled by the two options below).
+    mass_scale : float, optional
+        Multiplier (-) of the package's mass ``m`` and yaw inertia ``I_z``
+        (a loaded car with the same radius of gyration and centre of gravity,
+        so each axle's load grows alike). ``params`` is reported as given.
+    grip_scale : float, optional
+        Multiplier (-) of the tyres' force per unit load: the peak factors
+        ``p_dx1``, ``p_dy1`` and the slip stiffness factors ``p_kx1``,
+        ``p_ky1``. The friction schedule acts on top of it.
 
     Attributes
     ----------
@@ -80,8 +89,22 @@ class FullSizePlant(ActuatedPlant):
         input_delay: float = 0.0,
         friction: FrictionSchedule | None = None,
         params: VehicleParams | None = None,
+        mass_scale: float = 1.0,
+        grip_scale: float = 1.0,
     ) -> None:
+        for name, value in (("mass_scale", mass_scale), ("grip_scale", grip_scale)):
+            if not (math.isfinite(value) and value > 0.0):
+                raise ParameterError(f"FullSizePlant.{name} must be finite and > 0, got {value!r}")
+        self.mass_scale = float(mass_scale)
+        self.grip_scale = float(grip_scale)
         self._model: Any = copy.deepcopy(parameters_vehicle2())
+        if self.mass_scale != 1.0:
+            self._model.m = float(self._model.m) * self.mass_scale
+            self._model.I_z = float(self._model.I_z) * self.mass_scale
+        if self.grip_scale != 1.0:
+            tire = self._model.tire
+            for key in ("p_dx1", "p_dy1", "p_kx1", "p_ky1"):
+                setattr(tire, key, float(getattr(tire, key)) * self.grip_scale)
         self._nominal_dx1 = float(self._model.tire.p_dx1)
         self._nominal_dy1 = float(self._model.tire.p_dy1)
         self._applied_factor = 1.0

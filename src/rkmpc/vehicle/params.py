@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 
 from rkmpc.errors import ParameterError
 
@@ -171,6 +171,26 @@ class VehicleParams:
     def wheelbase(self) -> float:
         """Distance between the axles, ``lf + lr`` (m)."""
         return self.lf + self.lr
+
+    def with_mass_scaled(self, factor: float) -> VehicleParams:
+        """The same car loaded to ``factor`` times its mass.
+
+        The yaw inertia is scaled by the same factor (the radius of gyration is
+        kept) and the centre of gravity stays where it is, so the static load
+        on each axle also grows by ``factor``. Everything else is unchanged.
+
+        Parameters
+        ----------
+        factor : float
+            Mass multiplier (-), finite and > 0.
+
+        Returns
+        -------
+        VehicleParams
+        """
+        if not (math.isfinite(factor) and factor > 0.0):
+            raise ParameterError(f"mass factor must be finite and > 0, got {factor!r}")
+        return replace(self, mass=self.mass * factor, yaw_inertia=self.yaw_inertia * factor)
 
 
 def f1tenth() -> VehicleParams:

@@ -19,13 +19,16 @@ from abc import ABC, abstractmethod
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from rkmpc.control.base import Command, Observation
 from rkmpc.errors import ParameterError
 from rkmpc.vehicle.params import VehicleParams
+
+if TYPE_CHECKING:
+    from rkmpc.track.path import Path
 
 # Two instants closer than this (s) count as the same instant.
 _TIME_EPS = 1e-9
@@ -172,6 +175,118 @@ class FrictionChange(FrictionSchedule):
         if self.region is not None and not self.region.contains(x, y):
             return 1.0
         return self.factor
+
+
+class ArcWindowFriction(FrictionSchedule):
+    """Multiply the friction by ``factor`` over a stretch of track given by arc length.
+
+    A point is in the stretch when its projection onto ``path`` (nearest path
+    point over the whole lap) has arc length in ``[start_s, start_s + length_s)``,
+    wrapping across ``s = 0``, and lies at most ``max_lateral`` from the path.
+    The multiplier does not depend on time. Points outside the bounding box of
+    the stretch are rejected before projecting, so the schedule costs a
+    projection only near the stretch.
+
+    Parameters
+    ----------
+    factor : float
+        Friction multiplier (-) inside the stretch, finite and > 0.
+    path : Path
+        The path whose arc length defines the stretch (usually the track's
+        centre line).
+    start_s : float
+        Arc length where the stretch begins (m); wrapped into ``[0, path.length)``.
+    length_s : float
+        Length of the stretch along the path (m), ``0 < length_s <= path.length``.
+    max_lateral : float
+        Largest distance from the path (m) that still counts as on the
+        stretch, finite and > 0 (e.g. twice the track's half-width).
+    """
+
+    def __init__(
+        self, factor: float, path: Path, start_s: float, length_s: float, max_lateral: float
+    ) -> None:
+        if not (math.isfinite(factor) and factor > 0.0):
+            raise ParameterError(f"ArcWindowFriction.factor must be finite and > 0, got {factor!r}")
+        if not math.isfinite(start_s):
+            raise ParameterError(f"ArcWindowFriction.start_s must be finite, got {start_s!r}")
+        if not (math.isfinite(length_s) and 0.0 < length_s <= path.length):
+            raise ParameterError(
+                f"ArcWindowFriction.length_s must be in (0, {path.length!r}] (the lap), got {length_s!r}"
+            )
+        if not (math.isfinite(max_lateral) and max_lateral > 0.0):
+            raise ParameterError(f"ArcWindowFriction.max_lateral must be finite and > 0, got {max_lateral!r}")
+        self.factor = float(factor)
+        self.path = path
+        self.start_s = float(start_s) % path.length
+        self.length_s = float(length_s)
+        self.max_lateral = float(max_lateral)
+        # Bounding box of the stretch widened by max_lateral and by the sample spacing
+        # (the path cannot leave the box of its samples by more than one spacing).
+        n = min(100_000, max(100, math.ceil(self.length_s / (0.1 * self.max_lateral)) + 1))
+        xy = path.position(self.start_s + np.linspace(0.0, self.length_s, n))
+        pad = self.max_lateral + self.length_s / (n - 1)
+        self._box = (
+            float(xy[:, 0].min()) - pad,
+            float(xy[:, 0].max()) + pad,
+            float(xy[:, 1].min()) - pad,
+            float(xy[:, 1].max()) + pad,
+        )
+
+    def contains(self, x: float, y: float) -> bool:
+        """Whether the point ``(x, y)`` (m) lies on the stretch."""
+        x0, x1, y0, y1 = self._box
+        if not (x0 <= x <= x1 and y0 <= y <= y1):
+            return False
+        proj = self.path.project(x, y)
+        if abs(proj.lateral) > self.max_lateral:
+            return False
+        return (proj.s - self.start_s) % self.path.length < self.length_s
+
+    def __call__(self, time: float, x: float, y: float) -> float:
+        return self.factor if self.contains(x, y) else 1.0
+
+    def __repr__(self) -> str:
+        return (
+            f"ArcWindowFriction(factor={self.factor!r}, start_s={self.start_s!r}, "
+            f"length_s={self.length_s!r}, max_lateral={self.max_lateral!r})"
+        )
+
+
+@dataclass(frozen=True)
+class FrictionProduct(FrictionSchedule):
+    """The product of several friction schedules (each change acts on top of the others).
+
+    Parameters
+    ----------
+    schedules : tuple of FrictionSchedule
+        The factors, at least one.
+    """
+
+    schedules: tuple[FrictionSchedule, ...]
+
+    def __post_init__(self) -> None:
+        if not self.schedules:
+            raise ParameterError("FrictionProduct needs at least one schedule")
+
+    def __call__(self, time: float, x: float, y: float) -> float:
+        factor = 1.0
+        for schedule in self.schedules:
+            factor *= schedule(time, x, y)
+        return factor
+
+
+def combine_friction(*schedules: FrictionSchedule | None) -> FrictionSchedule | None:
+    """The product of the given schedules, ignoring None; None when all are None.
+
+    A single schedule is returned as it is.
+    """
+    present = tuple(s for s in schedules if s is not None)
+    if not present:
+        return None
+    if len(present) == 1:
+        return present[0]
+    return FrictionProduct(present)
 
 
 # --------------------------------------------------------------------------- shared plant machinery

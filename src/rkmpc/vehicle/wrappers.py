@@ -8,13 +8,14 @@ instead of by flags on the plants.
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
 from rkmpc.control.base import Command, Observation
 from rkmpc.errors import ParameterError
-from rkmpc.vehicle.plant import Plant
+from rkmpc.vehicle.plant import Plant, check_command
 
 
 class PlantWrapper(Plant):
@@ -131,3 +132,45 @@ class ObservationNoise(PlantWrapper):
             speed=true.speed + std.speed * float(noise[3]),
             yaw_rate=true.yaw_rate + std.yaw_rate * float(noise[4]),
         )
+
+
+class CommandDelay(PlantWrapper):
+    """Deliver each command to the wrapped plant a fixed number of steps late.
+
+    The command given to the ``n``-th :meth:`step` reaches the wrapped plant
+    at step ``n + steps``, that is ``steps`` control periods later when every
+    step lasts one period. This delay adds to the plant's own input delay. For
+    the first ``steps`` steps after :meth:`reset` the plant receives the
+    command it was reset to hold, ``Command(speed, steer)`` of the reset (at
+    construction, before any reset, ``Command(0, 0)``).
+
+    Parameters
+    ----------
+    plant : Plant
+        The plant to wrap.
+    steps : int
+        Delay in steps, >= 0; 0 passes every command straight through.
+    """
+
+    def __init__(self, plant: Plant, steps: int) -> None:
+        if isinstance(steps, bool) or not isinstance(steps, int | np.integer) or steps < 0:
+            raise ParameterError(f"CommandDelay.steps must be an integer >= 0, got {steps!r}")
+        super().__init__(plant)
+        self.steps = int(steps)
+        self._queue: deque[Command] = deque()
+        self._fill(Command(0.0, 0.0))
+
+    def _fill(self, command: Command) -> None:
+        self._queue.clear()
+        self._queue.extend([command] * self.steps)
+
+    def reset(self, x: float, y: float, yaw: float, speed: float, steer: float = 0.0) -> None:
+        super().reset(x, y, yaw, speed, steer)
+        self._fill(Command(float(speed), float(steer)))
+
+    def step(self, command: Command, dt: float) -> None:
+        check_command(command)  # a bad command fails now, not ``steps`` steps later
+        if not (math.isfinite(dt) and dt > 0.0):
+            raise ValueError(f"dt must be finite and > 0, got {dt!r}")
+        self._queue.append(command)
+        self.plant.step(self._queue.popleft(), dt)

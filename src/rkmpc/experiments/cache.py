@@ -1,0 +1,121 @@
+"""A content-addressed cache of trained models.
+
+Training a model is the slow part of an experiment (the KMPC model needs tens
+of thousands of random-excitation samples and up to a minute of training), and
+it depends only on what went into it. Each cached model is stored under the
+SHA-256 hash of a JSON *recipe*: everything that determines the model (data
+hash or data-generation settings, training settings, vehicle parameters,
+package version). A changed recipe gives a new key, so a stale model is never
+reused; an unreadable cache file is trained again and replaced.
+
+The cache folder is, in this order: the ``directory`` given, the environment
+variable ``RKMPC_CACHE_DIR``, ``$XDG_CACHE_HOME/rkmpc``, ``~/.cache/rkmpc``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from rkmpc.errors import InputFileError
+from rkmpc.learning.koopman import KoopmanModel
+from rkmpc.sim.log import json_default, write_json_atomic
+
+
+def default_cache_dir() -> Path:
+    """The cache folder used when none is given (see the module docstring)."""
+    env = os.environ.get("RKMPC_CACHE_DIR")
+    if env:
+        return Path(env)
+    xdg = os.environ.get("XDG_CACHE_HOME")
+    base = Path(xdg) if xdg else Path.home() / ".cache"
+    return base / "rkmpc"
+
+
+def recipe_key(recipe: Mapping[str, Any]) -> str:
+    """SHA-256 hex digest of a recipe's canonical JSON (sorted keys)."""
+    text = json.dumps(recipe, sort_keys=True, default=json_default, separators=(",", ":"))
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+@dataclass(frozen=True)
+class CacheHit:
+    """Where a cached model came from.
+
+    Parameters
+    ----------
+    key : str
+        Recipe hash.
+    path : Path
+        Model file.
+    hit : bool
+        True when the model was read from the cache, False when it was trained now.
+    info : dict
+        What the builder reported when the model was trained (sample counts,
+        training time), stored beside the model and returned on later hits.
+    """
+
+    key: str
+    path: Path
+    hit: bool
+    info: dict[str, Any]
+
+
+class ModelCache:
+    """Trained models by recipe hash.
+
+    Parameters
+    ----------
+    directory : str or Path or None
+        Cache folder; :func:`default_cache_dir` when None.
+    """
+
+    def __init__(self, directory: str | Path | None = None) -> None:
+        self.directory = Path(directory) if directory is not None else default_cache_dir()
+
+    def path_for(self, recipe: Mapping[str, Any]) -> Path:
+        """File the model of ``recipe`` is (or would be) stored in."""
+        return self.directory / f"{recipe.get('name', 'model')}-{recipe_key(recipe)[:20]}.rkm"
+
+    def get_or_build(
+        self,
+        recipe: Mapping[str, Any],
+        build: Callable[[], tuple[KoopmanModel, dict[str, Any]]],
+    ) -> tuple[KoopmanModel, CacheHit]:
+        """The cached model of ``recipe``, or ``build()``'s, which is then stored.
+
+        Parameters
+        ----------
+        recipe : mapping
+            JSON-serialisable description of everything that determines the
+            model; its optional ``name`` prefixes the file name.
+        build : callable
+            Trains the model; returns ``(model, info)`` with ``info`` a
+            JSON-serialisable report kept beside the model.
+
+        Returns
+        -------
+        model : KoopmanModel
+        hit : CacheHit
+        """
+        key = recipe_key(recipe)
+        path = self.path_for(recipe)
+        info_path = path.with_suffix(".json")
+        if path.exists() and info_path.exists():
+            try:
+                model = KoopmanModel.load(path)
+                stored = json.loads(info_path.read_text())
+                if stored.get("key") == key:
+                    return model, CacheHit(key, path, True, dict(stored.get("info", {})))
+            except (InputFileError, OSError, ValueError):
+                pass  # unreadable or foreign: train again and overwrite
+        model, info = build()
+        self.directory.mkdir(parents=True, exist_ok=True)
+        model.save(path, metadata={**model.metadata_, "cache_recipe": dict(recipe)})
+        write_json_atomic(info_path, {"key": key, "recipe": dict(recipe), "info": info})
+        return model, CacheHit(key, path, False, info)
