@@ -255,3 +255,21 @@ def test_unknown_fault_is_a_clear_error(tmp_path, capsys):
     code = main(["compare", "--controllers", "pp", "--fault", "rain", "--out", str(tmp_path)])
     assert code == 2
     assert "rain" in capsys.readouterr().err
+
+
+def test_study_tracks_in_parallel_writes_json_and_markdown(tmp_path, capsys):
+    out = tmp_path / "st"
+    args = ["study", "tracks", "--tracks", "builtin,oval", "--controllers", "pp,lmpc", "--jobs", "2"]
+    assert main([*args, "--out", str(out)]) == 0
+    result = json.loads((out / "study_tracks.json").read_text())
+    assert result["summary"]["lmpc"]["completed"] == 2
+    assert "| pp |" in (out / "study_tracks.md").read_text()
+
+
+def test_study_data_writes_json_plot_and_markdown(tmp_path):
+    out = tmp_path / "sd"
+    args = ["study", "data", "--sizes", "1000", "--seeds", "0", "--controllers", "rkmpc", "--epochs", "1"]
+    assert main([*args, "--jobs", "1", "--out", str(out)]) == 0
+    result = json.loads((out / "study_data.json").read_text())
+    assert result["jobs"][0]["controller"] == "rkmpc"
+    assert (out / "study_data.png").stat().st_size > 10_000

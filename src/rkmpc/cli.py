@@ -1,4 +1,4 @@
-"""Command line: ``rkmpc run | compare | collect | train | tracks``."""
+"""Command line: ``rkmpc run | compare | collect | train | tracks | study tracks | study data``."""
 
 from __future__ import annotations
 
@@ -104,7 +104,53 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument("--seed", type=int, default=0)
     train.add_argument("--out", required=True, type=Path, help="model file")
     sub.add_parser("tracks", help="list the built-in tracks")
+    _add_study_parser(sub)
     return parser
+
+
+def _add_parallel_args(parser: argparse.ArgumentParser) -> None:
+    import os
+
+    parser.add_argument(
+        "--jobs", type=int, default=os.cpu_count() or 1, help="parallel jobs (default: cores)"
+    )
+    parser.add_argument("--backend", default="loky", choices=["loky", "dask", "ray"], help="where jobs run")
+    parser.add_argument("--address", default=None, help="scheduler address of a running dask or ray cluster")
+    parser.add_argument("--out", required=True, type=Path, help="output folder")
+
+
+def _add_study_parser(sub: Any) -> None:
+    from rkmpc.experiments.learned import ALL_CONTROLLERS
+    from rkmpc.experiments.studies import DEFAULT_SIZES
+
+    study = sub.add_parser("study", help="multi-run studies: over tracks, or over training-data volume")
+    kinds = study.add_subparsers(dest="study", required=True)
+    tracks = kinds.add_parser(
+        "tracks", help="every controller on many tracks; mean and spread per controller"
+    )
+    tracks.add_argument(
+        "--tracks",
+        default="builtin",
+        help="comma-separated built-in names, centre-line CSV files or folders of them",
+    )
+    tracks.add_argument("--controllers", default=",".join(ALL_CONTROLLERS))
+    tracks.add_argument("--seeds", default="0", help="comma-separated seeds; one job per track and seed")
+    tracks.add_argument("--scale", type=float, default=None)
+    tracks.add_argument("--vehicle", default="f1tenth", choices=["f1tenth", "fullsize"])
+    tracks.add_argument("--kmpc-samples", type=int, default=50_000)
+    tracks.add_argument("--fault", default=None, help="also drive every controller with this fault")
+    tracks.add_argument("--epochs", type=int, default=None, help="training epochs of the learned models")
+    tracks.add_argument("--cache-dir", type=Path, default=None)
+    _add_parallel_args(tracks)
+    data = kinds.add_parser("data", help="RKMPC against KMPC as the number of training samples grows")
+    data.add_argument("--track", default="builtin")
+    data.add_argument("--scale", type=float, default=None)
+    data.add_argument("--vehicle", default="f1tenth", choices=["f1tenth", "fullsize"])
+    data.add_argument("--sizes", default=",".join(str(n) for n in DEFAULT_SIZES), help="training samples")
+    data.add_argument("--seeds", default="0,1,2")
+    data.add_argument("--controllers", default="rkmpc,kmpc")
+    data.add_argument("--epochs", type=int, default=None, help="training epochs (default: the models' own)")
+    _add_parallel_args(data)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -117,6 +163,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             return _cmd_collect(args)
         if args.command == "train":
             return _cmd_train(args)
+        if args.command == "study":
+            return _cmd_study_tracks(args) if args.study == "tracks" else _cmd_study_data(args)
         names = [args.controller] if args.command == "run" else _split(args.controllers)
         return _cmd_compare(args, names, single=args.command == "run")
     except (RkmpcError, ValueError, OSError) as exc:
@@ -316,6 +364,124 @@ def _scenario_track(study: Any) -> Any:
     from rkmpc.scenario import load_scenario
 
     return load_scenario(study.track, raceline=study.raceline, scale=study.scale, vehicle=study.vehicle).track
+
+
+def _ints(text: str, what: str) -> tuple[int, ...]:
+    try:
+        return tuple(int(v) for v in text.split(",") if v.strip())
+    except ValueError:
+        raise ValueError(f"{what} must be comma-separated integers, got {text!r}") from None
+
+
+def _study_progress(console: Any) -> Any:
+    def progress(outcome: Any, done: int, total: int) -> None:
+        state = f"{outcome.seconds:.0f} s" if outcome.ok else f"FAILED: {outcome.error}"
+        console.print(f"[{done}/{total}] {outcome.name}: {state}")
+
+    return progress
+
+
+def _cmd_study_tracks(args: argparse.Namespace) -> int:
+    from rich.console import Console
+
+    from rkmpc.experiments.studies import TracksStudyConfig, expand_tracks, study_tracks, tracks_markdown
+    from rkmpc.sim.log import write_json_atomic
+
+    console = Console(stderr=True)
+    names = _split(args.controllers)
+    seeds = _ints(args.seeds, "--seeds")
+    options: dict[str, Any] = {"kmpc_samples": args.kmpc_samples, "fault": args.fault, "epochs": args.epochs}
+    if args.cache_dir is not None:
+        options["cache_dir"] = str(args.cache_dir)
+    config = TracksStudyConfig(
+        tracks=expand_tracks(args.tracks.split(",")),
+        controllers=names,
+        seeds=seeds,
+        scale=args.scale,
+        vehicle=args.vehicle,
+        baseline="lmpc" if "lmpc" in names else None,
+        study_options=options,
+    )
+    if "kmpc" in names:
+        # Train the KMPC model once here; the parallel jobs then read it from the cache.
+        from rkmpc.experiments.cache import ModelCache
+        from rkmpc.experiments.learned import train_kmpc
+        from rkmpc.scenario import load_scenario
+
+        scenario = load_scenario(config.tracks[0], scale=args.scale, vehicle=args.vehicle)
+        for seed in seeds:
+            console.print(f"KMPC model, seed {seed}: {args.kmpc_samples} random-excitation samples (cached)")
+            train_kmpc(
+                scenario,
+                samples=args.kmpc_samples,
+                seed=seed,
+                cache=ModelCache(args.cache_dir),
+                epochs=args.epochs,
+            )
+    console.print(f"{len(config.tracks)} tracks x {len(seeds)} seeds on {args.jobs} {args.backend} workers")
+    result = study_tracks(
+        config,
+        n_jobs=args.jobs,
+        backend=args.backend,
+        address=args.address,
+        progress=_study_progress(console),
+    )
+    out: Path = args.out
+    write_json_atomic(out / "study_tracks.json", result)
+    text = tracks_markdown(result)
+    _write_text_atomic(out / "study_tracks.md", text)
+    print(text)
+    return 0
+
+
+def _cmd_study_data(args: argparse.Namespace) -> int:
+    from rich.console import Console
+
+    from rkmpc.analysis.plots import save_figure
+    from rkmpc.analysis.study_plots import plot_data_study
+    from rkmpc.experiments.studies import DataStudyConfig, data_markdown, study_data
+    from rkmpc.sim.log import write_json_atomic
+
+    console = Console(stderr=True)
+    model_options = {} if args.epochs is None else {"epochs": args.epochs}
+    config = DataStudyConfig(
+        track=args.track,
+        scale=args.scale,
+        vehicle=args.vehicle,
+        sizes=_ints(args.sizes, "--sizes"),
+        seeds=_ints(args.seeds, "--seeds"),
+        controllers=tuple(_split(args.controllers)),
+        model_options=model_options,
+    )
+    result = study_data(
+        config,
+        n_jobs=args.jobs,
+        backend=args.backend,
+        address=args.address,
+        progress=_study_progress(console),
+    )
+    out: Path = args.out
+    write_json_atomic(out / "study_data.json", result)
+    text = data_markdown(result)
+    _write_text_atomic(out / "study_data.md", text)
+    save_figure(plot_data_study(result, title=f"training data volume, {args.track}"), out / "study_data.png")
+    print(text)
+    return 0
+
+
+def _write_text_atomic(path: Path, text: str) -> None:
+    import os
+    import tempfile
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w") as handle:
+            handle.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
 
 
 if __name__ == "__main__":  # pragma: no cover

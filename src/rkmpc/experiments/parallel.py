@@ -1,0 +1,303 @@
+"""Run independent jobs in parallel: local processes, a Dask cluster or a Ray cluster.
+
+Every study in :mod:`rkmpc.experiments.studies` is a list of independent
+jobs (one track, one seed, one data size...). :func:`run_jobs` runs such a
+list through :mod:`joblib`:
+
+``"loky"`` (default)
+    Local worker processes started with ``spawn`` semantics (never ``fork``:
+    forking a process in which PyTorch has started its thread pools can
+    deadlock).
+``"dask"``
+    joblib's own Dask backend. It uses the :class:`dask.distributed.Client`
+    already created in this process, or connects to the scheduler at
+    ``address``. Concurrency is the cluster's (its worker threads), not
+    ``n_jobs``.
+``"ray"``
+    joblib's Ray backend (:func:`ray.util.joblib.register_ray`). Ray is
+    started locally when it is not running yet (``address=None``), or joined
+    at ``address``; a Ray session started here is shut down afterwards.
+
+Jobs run with one numeric thread each (``OMP_NUM_THREADS``,
+``OPENBLAS_NUM_THREADS``, ``MKL_NUM_THREADS`` and PyTorch's intra-op
+threads set to 1), so that ``n_jobs`` jobs use ``n_jobs`` cores. With
+``n_jobs=1`` on ``"loky"`` the jobs run one after the other in the calling
+process and its thread settings are left alone.
+
+Failures: a job that raises is caught in its worker. With
+``on_error="raise"`` (default) :func:`run_jobs` raises :class:`JobError`
+naming the first failed job (in completion order) and its message, and the
+jobs still queued are cancelled; with ``on_error="record"`` every job runs and
+the failure is returned as a :class:`JobOutcome` with ``ok=False`` and the
+message, which the studies use so that one bad track does not lose a long run.
+A worker process that dies (killed, out of memory) cannot be attributed to a
+job and raises :class:`JobError` in both modes.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import time
+import traceback
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import joblib
+
+from rkmpc.errors import ParameterError, RkmpcError
+
+#: Backends :func:`run_jobs` accepts.
+BACKENDS = ("loky", "dask", "ray")
+
+#: Environment variables set to ``"1"`` in workers (numeric libraries' thread pools).
+THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+
+
+class JobError(RkmpcError, RuntimeError):
+    """A job (or the worker running it) failed.
+
+    Parameters
+    ----------
+    name : str or None
+        Name of the failed job, None when a worker died and the job is unknown.
+    message : str
+        What went wrong.
+    """
+
+    def __init__(self, name: str | None, message: str) -> None:
+        self.name = name
+        self.message = message
+        where = f"job {name!r} failed" if name is not None else "a parallel worker failed"
+        super().__init__(f"{where}: {message}")
+
+
+@dataclass(frozen=True)
+class Job:
+    """One independent unit of work.
+
+    Parameters
+    ----------
+    name : str
+        Label used in progress reports and error messages (unique in a run).
+    func : callable
+        A picklable callable (a module-level function), called as
+        ``func(*args, **kwargs)`` in a worker.
+    args : tuple
+        Positional arguments (picklable).
+    kwargs : mapping
+        Keyword arguments (picklable).
+    """
+
+    name: str
+    func: Callable[..., Any]
+    args: tuple[Any, ...] = ()
+    kwargs: Mapping[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.name, str) or not self.name:
+            raise ParameterError(f"Job.name must be a non-empty string, got {self.name!r}")
+        if not callable(self.func):
+            raise ParameterError(f"Job.func of job {self.name!r} is not callable: {self.func!r}")
+
+
+@dataclass(frozen=True)
+class JobOutcome:
+    """What one job returned.
+
+    Parameters
+    ----------
+    name : str
+        The job's name.
+    index : int
+        Position of the job in the list given to :func:`run_jobs`.
+    ok : bool
+        False when the job raised.
+    value : object
+        The job's return value (None when it failed).
+    error : str or None
+        ``"ExceptionType: message"`` of a failed job.
+    traceback : str or None
+        Formatted traceback of a failed job (from the worker).
+    seconds : float
+        Wall time of the job in its worker (s).
+    """
+
+    name: str
+    index: int
+    ok: bool
+    value: Any = None
+    error: str | None = None
+    traceback: str | None = None
+    seconds: float = 0.0
+
+
+#: Progress callback: ``(outcome, jobs_done, jobs_total)``, called in the calling process.
+ProgressCallback = Callable[[JobOutcome, int, int], None]
+
+
+def limit_threads() -> None:
+    """Use one thread in numeric libraries from now on, in this process.
+
+    Sets :data:`THREAD_VARIABLES` to ``"1"`` (read when the libraries are
+    first loaded) and, when PyTorch is loaded already, its intra-op threads.
+    """
+    for name in THREAD_VARIABLES:
+        os.environ[name] = "1"
+    torch = sys.modules.get("torch")
+    if torch is not None:
+        torch.set_num_threads(1)
+
+
+def _run_one(index: int, job: Job, single_thread: bool) -> JobOutcome:
+    """Worker side: run one job and catch its failure."""
+    if single_thread:
+        limit_threads()
+    t0 = time.perf_counter()
+    try:
+        value = job.func(*job.args, **dict(job.kwargs))
+    except Exception as exc:
+        return JobOutcome(
+            name=job.name,
+            index=index,
+            ok=False,
+            error=f"{type(exc).__name__}: {exc}",
+            traceback=traceback.format_exc(),
+            seconds=time.perf_counter() - t0,
+        )
+    return JobOutcome(name=job.name, index=index, ok=True, value=value, seconds=time.perf_counter() - t0)
+
+
+def _check(jobs: Sequence[Job], n_jobs: int, backend: str, on_error: str) -> None:
+    if backend not in BACKENDS:
+        raise ParameterError(f"backend must be one of {list(BACKENDS)}, got {backend!r}")
+    if isinstance(n_jobs, bool) or not isinstance(n_jobs, int) or n_jobs == 0 or n_jobs < -1:
+        raise ParameterError(f"n_jobs must be a positive integer or -1 (all cores), got {n_jobs!r}")
+    if on_error not in ("raise", "record"):
+        raise ParameterError(f"on_error must be 'raise' or 'record', got {on_error!r}")
+    names = [j.name for j in jobs]
+    if not all(isinstance(j, Job) for j in jobs):
+        raise ParameterError("run_jobs: every job must be a Job")
+    dup = sorted({n for n in names if names.count(n) > 1})
+    if dup:
+        raise ParameterError(f"run_jobs: job names must be unique, repeated: {dup}")
+
+
+def run_jobs(
+    jobs: Sequence[Job],
+    *,
+    n_jobs: int = 1,
+    backend: str = "loky",
+    address: str | None = None,
+    on_error: str = "raise",
+    progress: ProgressCallback | None = None,
+) -> list[JobOutcome]:
+    """Run independent jobs and return their outcomes in job order.
+
+    Parameters
+    ----------
+    jobs : sequence of Job
+        The jobs; names must be unique.
+    n_jobs : int
+        Concurrent jobs for ``"loky"`` and ``"ray"`` (-1: all cores); the
+        Dask backend runs as many as the cluster has worker threads.
+    backend : {"loky", "dask", "ray"}
+        Where the jobs run (see the module docstring).
+    address : str, optional
+        Dask scheduler (``"tcp://host:8786"``) or Ray cluster
+        (``"ray://host:10001"``, ``"auto"``) address. With ``"dask"`` and no
+        address the process's current :class:`dask.distributed.Client` is used.
+        Ignored by ``"loky"``.
+    on_error : {"raise", "record"}
+        Raise :class:`JobError` at the first failed job, or record failures
+        in the outcomes and run every job.
+    progress : callable, optional
+        ``progress(outcome, done, total)``, called in this process as each job
+        finishes (in completion order; with ``"ray"``, whose joblib backend
+        returns results only at the end, once per job after all have run).
+
+    Returns
+    -------
+    list of JobOutcome
+        One per job, in the order of ``jobs``.
+
+    Raises
+    ------
+    ParameterError
+        Bad ``n_jobs``, ``backend``, ``on_error`` or jobs.
+    JobError
+        A job failed (``on_error="raise"``), or a worker process died.
+    ImportError
+        ``dask``/``distributed`` or ``ray`` is not installed (``pip install rkmpc[cluster]``).
+    """
+    jobs = list(jobs)
+    _check(jobs, n_jobs, backend, on_error)
+    total = len(jobs)
+    if total == 0:
+        return []
+    single_thread = not (backend == "loky" and n_jobs == 1)
+    outcomes: list[JobOutcome | None] = [None] * total
+    config: dict[str, Any] = {"backend": backend, "n_jobs": n_jobs}
+    started_ray = False
+    if backend == "loky":
+        config["inner_max_num_threads"] = 1
+    elif backend == "dask":
+        try:
+            import distributed
+        except ImportError as exc:
+            raise ImportError(
+                "backend 'dask' needs dask and distributed: pip install 'rkmpc[cluster]'"
+            ) from exc
+        if address is not None:
+            config["scheduler_host"] = address
+        else:
+            try:
+                distributed.get_client()
+            except ValueError:
+                raise ParameterError(
+                    "backend 'dask' without an address needs a dask.distributed.Client started in "
+                    "this process (Client(...) or Client(LocalCluster(...))), or address='tcp://...'"
+                ) from None
+    else:
+        try:
+            import ray
+            from ray.util.joblib import register_ray
+        except ImportError as exc:
+            raise ImportError("backend 'ray' needs ray: pip install 'rkmpc[cluster]'") from exc
+        register_ray()
+        if not ray.is_initialized():
+            ray.init(address=address)
+            started_ray = True
+    unordered = backend != "ray"
+    calls = (joblib.delayed(_run_one)(i, job, single_thread) for i, job in enumerate(jobs))
+    done = 0
+    try:
+        with joblib.parallel_config(**config):
+            parallel = joblib.Parallel(return_as="generator_unordered" if unordered else "list")
+            try:
+                results = iter(parallel(calls))
+            except Exception as exc:
+                raise JobError(None, f"{type(exc).__name__}: {exc}") from exc
+            while True:
+                try:
+                    outcome = next(results)
+                except StopIteration:
+                    break
+                except Exception as exc:  # a worker died, or the backend failed
+                    raise JobError(None, f"{type(exc).__name__}: {exc}") from exc
+                outcomes[outcome.index] = outcome
+                done += 1
+                if progress is not None:
+                    progress(outcome, done, total)
+                if not outcome.ok and on_error == "raise":
+                    raise JobError(outcome.name, f"{outcome.error}\n{outcome.traceback}")
+    finally:
+        if started_ray:
+            import ray
+
+            ray.shutdown()
+    missing = [jobs[i].name for i, o in enumerate(outcomes) if o is None]
+    if missing:
+        raise JobError(missing[0], "no result came back from the backend")
+    return [o for o in outcomes if o is not None]

@@ -1,0 +1,95 @@
+"""run_jobs: same results in job order through serial, loky and a local Dask cluster."""
+
+from __future__ import annotations
+
+import math
+import operator
+import os
+
+import pytest
+
+from rkmpc.errors import ParameterError
+from rkmpc.experiments.parallel import Job, JobError, run_jobs
+
+# Module-level functions of the standard library: picklable by reference in any worker.
+JOBS = [Job(f"pow-{i}", operator.pow, (i, 2)) for i in range(6)] + [
+    Job("hyp", math.hypot, (3.0, 4.0)),
+    Job("threads", os.getenv, ("OMP_NUM_THREADS",)),
+]
+EXPECTED = [0, 1, 4, 9, 16, 25, 5.0]
+
+
+def _values(outcomes):
+    assert [o.name for o in outcomes] == [j.name for j in JOBS]
+    assert [o.index for o in outcomes] == list(range(len(JOBS)))
+    assert all(o.ok for o in outcomes)
+    return [o.value for o in outcomes]
+
+
+def test_serial_runs_in_order_and_reports_progress():
+    seen = []
+    out = run_jobs(JOBS, progress=lambda o, done, total: seen.append((o.name, done, total)))
+    assert _values(out)[:-1] == EXPECTED
+    assert [s[1] for s in seen] == list(range(1, len(JOBS) + 1))
+    assert all(s[2] == len(JOBS) for s in seen)
+
+
+def test_loky_matches_serial_with_one_thread_per_worker():
+    out = run_jobs(JOBS, n_jobs=2, backend="loky")
+    values = _values(out)
+    assert values[:-1] == EXPECTED
+    assert values[-1] == "1"  # numeric libraries limited to one thread in workers
+
+
+def test_failures_raise_with_the_job_name_or_are_recorded():
+    jobs = [Job("ok", math.sqrt, (4.0,)), Job("bad-sqrt", math.sqrt, (-1.0,))]
+    with pytest.raises(JobError, match=r"bad-sqrt.*ValueError"):
+        run_jobs(jobs)
+    out = run_jobs(jobs, on_error="record")
+    assert out[0].ok and out[0].value == 2.0
+    assert not out[1].ok and out[1].value is None
+    assert out[1].error.startswith("ValueError")
+    assert "Traceback" in out[1].traceback
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"backend": "spark"}, "backend"),
+        ({"n_jobs": 0}, "n_jobs"),
+        ({"on_error": "ignore"}, "on_error"),
+    ],
+)
+def test_bad_settings(kwargs, match):
+    with pytest.raises(ParameterError, match=match):
+        run_jobs(JOBS, **kwargs)
+
+
+def test_duplicate_names_and_bad_jobs():
+    with pytest.raises(ParameterError, match="unique"):
+        run_jobs([Job("a", abs, (1,)), Job("a", abs, (2,))])
+    with pytest.raises(ParameterError, match="callable"):
+        Job("x", 3)  # type: ignore[arg-type]
+    assert run_jobs([]) == []
+
+
+def test_dask_local_cluster_matches_serial():
+    distributed = pytest.importorskip("distributed")
+    with (
+        distributed.LocalCluster(
+            n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+        ) as cluster,
+        distributed.Client(cluster),
+    ):
+        out = run_jobs(JOBS, backend="dask")
+        values = _values(out)
+        failed = run_jobs([Job("bad", math.sqrt, (-1.0,))], backend="dask", on_error="record")
+    assert values[:-1] == EXPECTED
+    assert values[-1] == "1"
+    assert not failed[0].ok and "ValueError" in failed[0].error
+
+
+def test_dask_without_client_is_a_clear_error():
+    pytest.importorskip("distributed")
+    with pytest.raises(ParameterError, match="Client"):
+        run_jobs(JOBS, backend="dask")
