@@ -72,6 +72,7 @@ def main() -> None:
     cases = list(CASES)
     if importlib.util.find_spec("acados") is not None:
         cases.append(("nmpc-acados (rti)", "nmpc-acados", {}))
+        cases.append(("nmpc-acados-dyn (rti)", "nmpc-acados-dynamic", {}))
     if not args.no_learned:
         cases += learned_cases(scenario, args.kmpc_model)
     report: dict[str, object] = {"track": scenario.track.name, "versions": versions(), "controllers": {}}

@@ -1,20 +1,173 @@
+import math
+
 import numpy as np
 import pytest
 
+from rkmpc.analysis.metrics import lap_metrics
 from rkmpc.control import make_controller
-from rkmpc.sim.closed_loop import SimConfig, simulate
+from rkmpc.control.base import Observation
+from rkmpc.control.nmpc import NMPCConfig
+from rkmpc.control.nmpc_acados import acados_cache_dir
+from rkmpc.errors import ParameterError
+from rkmpc.sim.closed_loop import simulate
 from rkmpc.vehicle.plant import make_plant
 
 pytest.importorskip("acados", reason="acados is the optional extra rkmpc[acados]")
+pytest.importorskip("Cython", reason="the acados NMPCs build a Cython module")
+
+# The generated solvers are keyed by their content, so the tests use the user's acados cache
+# (read here, before the autouse fixture points RKMPC_CACHE_DIR to a temporary folder): only
+# the first run on a machine pays for code generation and compilation (a few seconds each).
+CACHE = acados_cache_dir()
+ACADOS = ("nmpc-acados", "nmpc-acados-dynamic")
+#: The CasADi NMPC that solves the same NLP.
+CASADI = {"nmpc-acados": "nmpc", "nmpc-acados-dynamic": "nmpc-dynamic"}
 
 
-def test_acados_nmpc_short_closed_loop(builtin_scenario, tmp_path, monkeypatch):
-    monkeypatch.setenv("RKMPC_CACHE_DIR", str(tmp_path))
+def _make(name, scenario, **options):
+    return make_controller(name, scenario.reference, scenario.vehicle, cache_dir=CACHE, **options)
+
+
+def _on_path_observation(scenario, s=5.0, offset=0.0):
+    path = scenario.reference.path
+    p = path.position(s)
+    yaw = float(path.heading(s))
+    return Observation(
+        x=float(p[0]) + offset * math.sin(yaw),
+        y=float(p[1]) - offset * math.cos(yaw),
+        yaw=yaw,
+        speed=float(scenario.reference.profile.speed(s)),
+    )
+
+
+@pytest.mark.parametrize("name", ACADOS)
+def test_acados_nmpc_laps_builtin_like_casadi(builtin_scenario, name):
     sc = builtin_scenario
-    ctrl = make_controller("nmpc-acados", sc.reference, sc.vehicle)
-    result = simulate(make_plant("f1tenth"), ctrl, sc.track, sc.reference, SimConfig(max_time=4.0))
-    assert result.outcome == "timeout"
+    # The CasADi NMPC on its fast path (one SQP iteration per step, like the RTI).
+    casadi = make_controller(
+        CASADI[name], sc.reference, sc.vehicle, config=NMPCConfig(solver="sqpmethod", max_iterations=1)
+    )
+    reference = lap_metrics(simulate(make_plant("f1tenth"), casadi, sc.track, sc.reference))
+    ctrl = _make(name, sc)
+    result = simulate(make_plant("f1tenth"), ctrl, sc.track, sc.reference)
+    metrics = lap_metrics(result)
+    assert result.outcome == "completed", metrics
     assert ctrl.fallback_count == 0
+    # Same NLP as the CasADi NMPC, one RTI per step: the closed loops agree closely.
+    assert metrics["lateral_error_mean_m"] <= 1.05 * reference["lateral_error_mean_m"]
+    assert metrics["lateral_error_max_m"] <= 1.1 * reference["lateral_error_max_m"]
     steer = result.log["cmd_steer"][:-1]
     assert np.all(np.abs(steer) <= sc.vehicle.steering.max_angle + 1e-9)
-    assert np.abs(result.log["lateral_error"]).max() < 0.3
+    step_max = sc.vehicle.steering.max_rate * ctrl.config.dt
+    assert np.all(np.abs(np.diff(steer)) <= step_max + 1e-9)
+
+
+@pytest.mark.parametrize("name", ACADOS)
+def test_acados_build_is_cached_outside_the_working_directory(builtin_scenario, name, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    sc = builtin_scenario
+    first = _make(name, sc)
+    second = _make(name, sc)
+    assert not second.built
+    assert second.build_dir == first.build_dir
+    assert (second.build_dir / "built.json").exists()
+    assert list(tmp_path.iterdir()) == []
+    # Another problem is another build.
+    other = _make(name, sc, config=NMPCConfig(horizon=12))
+    assert other.build_dir != first.build_dir
+
+
+def test_acados_nmpc_plan_matches_reference_on_path(builtin_scenario):
+    sc = builtin_scenario
+    ctrl = _make("nmpc-acados", sc)
+    ctrl.reset()
+    obs = _on_path_observation(sc)
+    for _ in range(3):
+        ctrl.step(obs)
+    assert ctrl.info.status == "ok"
+    assert ctrl.last_plan is not None and ctrl.last_plan.shape == (ctrl.config.horizon, 2)
+    assert ctrl.last_states is not None and ctrl.last_states.shape == (ctrl.config.horizon + 1, 3)
+    # Predicted path starts at the car and stays near the reference.
+    assert np.allclose(ctrl.last_states[0, :2], [obs.x, obs.y])
+    ref = sc.reference.horizon(sc.reference.project(obs.x, obs.y).s, ctrl.config.horizon, ctrl.config.dt)
+    assert np.max(np.hypot(ctrl.last_states[:, 0] - ref.x, ctrl.last_states[:, 1] - ref.y)) < 0.2
+
+
+class _FailingSolver:
+    """Wraps a solver and makes some of its solves fail."""
+
+    def __init__(self, solver, mode):
+        self._solver = solver
+        self.mode = mode
+        self.resets = 0
+
+    def __getattr__(self, name):
+        return getattr(self._solver, name)
+
+    def solve(self):
+        if self.mode == "raise":
+            raise RuntimeError("injected")
+        if self.mode == "status":
+            self._solver.solve()
+            return 4  # the QP solver failed
+        return self._solver.solve()
+
+    def reset(self):
+        self.resets += 1
+        self._solver.reset()
+
+
+@pytest.mark.parametrize("name", ACADOS)
+@pytest.mark.parametrize("mode", ["status", "raise"])
+def test_acados_forced_failure_falls_back_and_recovers(builtin_scenario, name, mode):
+    sc = builtin_scenario
+    ctrl = _make(name, sc)
+    ctrl.reset()
+    obs = _on_path_observation(sc)
+    first = ctrl.step(obs)
+    assert ctrl.info.status == "ok"
+    plan = ctrl.last_plan.copy()
+    failing = _FailingSolver(ctrl._solver, mode)
+    ctrl._solver = failing
+    commands = []
+    for i in range(3):
+        commands.append(ctrl.step(obs))
+        assert ctrl.info.status == "fallback"
+        assert "acados RTI failed" in ctrl.info.message
+        assert ctrl.fallback_count == i + 1
+        assert ctrl.last_plan is None
+    assert failing.resets == 3
+    # The fall-back is the last plan, shifted, within the steering-rate limit.
+    assert commands[0].speed == pytest.approx(plan[1, 0])
+    step_max = sc.vehicle.steering.max_rate * ctrl.config.dt
+    steers = [first.steer] + [c.steer for c in commands]
+    assert np.all(np.abs(np.diff(steers)) <= step_max + 1e-9)
+    failing.mode = "ok"
+    ctrl.step(obs)
+    assert ctrl.info.status == "ok"
+    assert ctrl.step_count == 5 and ctrl.fallback_count == 3
+
+
+@pytest.mark.parametrize("name", ACADOS)
+def test_acados_infeasible_problem_falls_back(builtin_scenario, name):
+    sc = builtin_scenario
+    ctrl = _make(name, sc)
+    ctrl.reset()
+    obs = _on_path_observation(sc)
+    ctrl.step(obs)
+    # A previous wheel angle far outside the limits: the rate constraint cannot be met.
+    ctrl._guard.previous = np.array([1.0, sc.vehicle.steering.max_angle + 1.0])
+    cmd = ctrl.step(obs)
+    assert ctrl.info.status == "fallback"
+    assert np.isfinite(cmd.speed) and np.isfinite(cmd.steer)
+    assert ctrl.fallback_count == 1
+    ctrl.step(obs)
+    assert ctrl.info.status == "ok"
+
+
+def test_acados_rejects_bad_options(builtin_scenario):
+    sc = builtin_scenario
+    with pytest.raises(ParameterError):
+        _make("nmpc-acados", sc, qp_solver="OSQP")
+    with pytest.raises(ParameterError):
+        _make("nmpc-acados", sc, config=NMPCConfig(hessian="limited-memory"))

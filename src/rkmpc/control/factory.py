@@ -27,6 +27,13 @@ def _acados_nmpc(reference: Reference, vehicle: VehicleParams, **options: Any) -
     return AcadosKinematicNMPC(reference, vehicle, **options)
 
 
+def _acados_nmpc_dynamic(reference: Reference, vehicle: VehicleParams, **options: Any) -> Controller:
+    """``nmpc-acados-dynamic``: imported on use, as acados is an optional extra."""
+    from rkmpc.control.nmpc_acados_dynamic import AcadosDynamicNMPC
+
+    return AcadosDynamicNMPC(reference, vehicle, **options)
+
+
 #: Controller builders by registry name; each takes ``(reference, vehicle, **options)``.
 CONTROLLERS: dict[str, ControllerFactory] = {
     "pp": PurePursuit,
@@ -35,6 +42,7 @@ CONTROLLERS: dict[str, ControllerFactory] = {
     "nmpc": KinematicNMPC,
     "nmpc-dynamic": DynamicNMPC,
     "nmpc-acados": _acados_nmpc,
+    "nmpc-acados-dynamic": _acados_nmpc_dynamic,
     "kmpc": KoopmanMPC,
     "rkmpc": ResidualKoopmanMPC,
     "rkmpc-paper": PaperResidualKoopmanMPC,
@@ -64,7 +72,9 @@ def make_controller(name: str, reference: Reference, vehicle: VehicleParams, **o
     name : str
         Registry name: ``"pp"`` (pure pursuit), ``"lmpc"`` (linear MPC),
         ``"lmpc-id"`` (LMPC with identified servo lag and understeer), ``"nmpc"`` and
-        ``"nmpc-dynamic"`` (nonlinear MPC, CasADi), ``"kmpc"``
+        ``"nmpc-dynamic"`` (nonlinear MPC, CasADi), ``"nmpc-acados"`` and
+        ``"nmpc-acados-dynamic"`` (the same as acados real-time iterations; needs
+        the optional extra ``rkmpc[acados]``), ``"kmpc"``
         (Koopman MPC), ``"rkmpc"`` (residual Koopman MPC) or ``"rkmpc-paper"``
         (its literal reading). The last four need ``model=``.
     reference : Reference

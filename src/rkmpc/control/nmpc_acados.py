@@ -1,72 +1,197 @@
-"""Kinematic NMPC as an acados real-time iteration (optional fast path).
+"""The nonlinear MPCs as acados real-time iterations (optional fast path).
 
-:class:`AcadosKinematicNMPC` tracks the same time-indexed reference as
-:class:`rkmpc.control.nmpc.KinematicNMPC` with the same weights, but solves the
-OCP with acados: one SQP real-time iteration (``SQP_RTI``) per control period,
-an explicit RK4 integrator and a structure-exploiting QP solver.
+:class:`AcadosKinematicNMPC` (``nmpc-acados``) and
+:class:`rkmpc.control.nmpc_acados_dynamic.AcadosDynamicNMPC`
+(``nmpc-acados-dynamic``) pose the NLP of
+:class:`rkmpc.control.nmpc.KinematicNMPC` and
+:class:`rkmpc.control.nmpc.DynamicNMPC` (same model, cost, horizon, bounds
+and state estimate) and solve it with acados: one SQP real-time iteration
+(``SQP_RTI``) per control period and a dense QP solver.
 
-To express the steering-rate limit as a simple bound, the applied inputs are
-states of the OCP and their rates are its controls:
+To express the steering-rate limit and the input-rate cost, the input applied
+one step earlier is carried as two extra states, so that the OCP is
 
-* states ``[x, y, theta, v, delta]`` (``v, delta``: the command in force),
-* controls ``[a, omega] = [dv/dt, ddelta/dt]``, ``|omega| <= max_rate``.
-
-The command of a period is ``[v, delta]`` of the first predicted state
-``x_1``, so ``|delta_1 - delta_0| <= max_rate * dt`` as in the CasADi NMPC;
-the difference is that, inside a period, the model's speed and wheel angle
-ramp linearly from the old command to the new one instead of jumping.
-
-Cost (``LINEAR_LS``), stage ``k = 1..N``: ``q_p |p_k - p^r_k|^2 +
-q_theta (theta_k - theta^r_k)^2 + r_v (v_k - v^r_{k-1})^2 + r_delta (delta_k -
-delta^r_{k-1})^2``, plus at every stage ``k = 0..N-1`` the rate terms
-``w_v (a_k dt)^2 + w_delta (omega_k dt)^2`` (= the squared step-to-step input
-changes). Per-stage bounds ``v_k <= v^r_{k-1} + margin`` and the car's input
-limits act on the states ``v_k, delta_k``.
+* states ``[model states, v_prev, delta_prev]``, controls ``u = [v_cmd, delta_cmd]``;
+* discrete dynamics ``x_{k+1} = [F(x_k, u_k), u_k]``, with ``F`` the RK4 map of
+  one period (:func:`rkmpc.control.nmpc_models.rk4_map`), inputs held over the period;
+* linear least squares on ``y_k = [x_k, y_k, theta_k, u_k, u_k - u_prev_k]``
+  against ``[pose^r_k, u^r_k, 0]`` (the pose term is constant at stage 0), and
+  ``terminal_factor`` times the pose weights at stage N;
+* bounds ``u_min <= u_k <= u_max``, ``v_k <= v^r_k + margin``, and the linear
+  constraint ``|delta_k - delta_prev_k| <= max_rate * dt``;
+* ``x_0`` fixed to the estimated state and the previous command.
 
 Positions are relative to the current reference point (as in the CasADi
 version); the previous solution is shifted by one step, moved into the new
-frame and given to acados as the initial guess.
+frame and given to acados as the initial guess, every step.
 
-The generated C code is built once per problem (horizon, period, weights,
-car limits) into ``~/.cache/rkmpc/acados/<hash>`` (or ``$RKMPC_CACHE_DIR``),
-never into the working directory. acados is optional: install it with
-``pip install comma-deps-acados==0.2.2.post92``.
+The per-step exchange with acados goes through a small Cython module built
+next to the generated solver: it copies the references, bounds and initial
+guess of all stages in one call and reads the solution back in one call, so
+the Python overhead of a step does not grow with the horizon.
+
+The generated C code and the Cython module are built once per problem into
+``~/.cache/rkmpc/acados/<name>`` (or ``$RKMPC_CACHE_DIR/acados``), never into
+the working directory; ``<name>`` is a hash of everything that enters the
+generated code (model expressions, weights, bounds, solver options, versions),
+so a second construction of the same problem, in any process, reuses the
+build. Concurrent builds of the same problem wait on a file lock.
+
+acados is optional: ``pip install rkmpc[acados]`` (``comma-deps-acados`` and
+``cython``; a C compiler is needed on first use).
 """
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import hashlib
+import importlib.util
+import io
 import json
+import logging
 import math
 import os
+import shutil
+import subprocess
+import sys
+import sysconfig
+from collections.abc import Iterator
+from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from rkmpc.control.base import Command, Controller, Observation
-from rkmpc.control.guard import CommandGuard
+from rkmpc.control.base import Command, Observation
 from rkmpc.control.lmpc import wrap_angle
-from rkmpc.control.nmpc import NMPCConfig
+from rkmpc.control.nmpc import KinematicNMPC, NMPCConfig
+from rkmpc.errors import ParameterError
 from rkmpc.vehicle.params import VehicleParams
 
 if TYPE_CHECKING:
-    from rkmpc.track.reference import Reference
+    from rkmpc.track.reference import Reference, ReferenceHorizon
 
-__all__ = ["AcadosKinematicNMPC", "acados_cache_dir"]
+__all__ = ["QP_SOLVERS", "AcadosKinematicNMPC", "acados_cache_dir"]
+
+_LOG = logging.getLogger(__name__)
 
 _INSTALL_HINT = (
-    "AcadosKinematicNMPC needs acados; install it with `pip install comma-deps-acados==0.2.2.post92`"
+    "the acados NMPCs need acados and cython; install them with `pip install rkmpc[acados]` "
+    "(comma-deps-acados==0.2.2.post92, cython==3.3.1)"
 )
 #: Bumped when the generated problem changes in a way the hash would not see.
-_CODE_VERSION = 1
-_QP_SOLVERS = ("PARTIAL_CONDENSING_HPIPM", "FULL_CONDENSING_QPOASES")
+_CODE_VERSION = 2
+#: QP solvers the acados NMPCs accept.
+QP_SOLVERS = ("FULL_CONDENSING_QPOASES", "PARTIAL_CONDENSING_HPIPM")
+_HESSIANS = {"exact": "EXACT", "gauss-newton": "GAUSS_NEWTON"}
 _TWO_PI = 2.0 * math.pi
+_NU = 2
+
+#: The Cython module built beside each generated solver: bulk copies in and out of acados.
+_BULK_PYX = '''\
+# cython: language_level=3, boundscheck=False, wraparound=False, initializedcheck=False
+"""Bulk access to one generated acados OCP solver (written by rkmpc.control.nmpc_acados)."""
+
+cimport acados_solver_common as common
+cimport acados_solver as generated
+
+
+cdef class BulkSolver:
+    """Create the generated solver; set and get the data of all stages in one call each."""
+
+    cdef generated.nlp_solver_capsule *capsule
+    cdef common.ocp_nlp_config *config
+    cdef common.ocp_nlp_dims *dims
+    cdef common.ocp_nlp_in *nlp_in
+    cdef common.ocp_nlp_out *nlp_out
+    cdef common.ocp_nlp_solver *solver
+    cdef bint created
+    cdef readonly int N, nx, nu, ny, ny_e
+
+    def __cinit__(self, int N, int nx, int nu, int ny, int ny_e):
+        self.created = False
+        self.capsule = generated.acados_create_capsule()
+        if self.capsule == NULL:
+            raise MemoryError("acados: could not allocate the solver capsule")
+        if generated.acados_create(self.capsule) != 0:
+            raise RuntimeError("acados: could not create the solver")
+        self.created = True
+        self.config = generated.acados_get_nlp_config(self.capsule)
+        self.dims = generated.acados_get_nlp_dims(self.capsule)
+        self.nlp_in = generated.acados_get_nlp_in(self.capsule)
+        self.nlp_out = generated.acados_get_nlp_out(self.capsule)
+        self.solver = generated.acados_get_nlp_solver(self.capsule)
+        self.N, self.nx, self.nu, self.ny, self.ny_e = N, nx, nu, ny, ny_e
+        if (common.ocp_nlp_dims_get_from_attr(self.config, self.dims, self.nlp_out, 0, b"x") != nx
+                or common.ocp_nlp_dims_get_from_attr(self.config, self.dims, self.nlp_out, 0, b"u") != nu):
+            raise ValueError("acados: the generated solver has other dimensions")
+
+    def __dealloc__(self):
+        if self.capsule != NULL:
+            if self.created:
+                generated.acados_free(self.capsule)
+            generated.acados_free_capsule(self.capsule)
+
+    cdef void _check(self, const double[:, ::1] a, int rows, int cols, str name) except *:
+        if a.shape[0] != rows or a.shape[1] != cols:
+            raise ValueError(f"{name}: expected shape ({rows}, {cols}), got ({a.shape[0]}, {a.shape[1]})")
+
+    def prepare(self, const double[::1] x0, const double[:, ::1] yref, const double[::1] yref_e,
+                const double[:, ::1] lbu, const double[:, ::1] ubu,
+                const double[:, ::1] x_guess, const double[:, ::1] u_guess):
+        """Initial state, references, input bounds and initial guess of all stages."""
+        cdef int k
+        cdef common.ocp_nlp_config *cfg = self.config
+        cdef common.ocp_nlp_dims *dims = self.dims
+        cdef common.ocp_nlp_in *nlp_in = self.nlp_in
+        cdef common.ocp_nlp_out *out = self.nlp_out
+        if x0.shape[0] != self.nx or yref_e.shape[0] != self.ny_e:
+            raise ValueError("x0 or yref_e: wrong length")
+        self._check(yref, self.N, self.ny, "yref")
+        self._check(lbu, self.N, self.nu, "lbu")
+        self._check(ubu, self.N, self.nu, "ubu")
+        self._check(x_guess, self.N + 1, self.nx, "x_guess")
+        self._check(u_guess, self.N, self.nu, "u_guess")
+        common.ocp_nlp_constraints_model_set(cfg, dims, nlp_in, 0, b"lbx", <void *> &x0[0])
+        common.ocp_nlp_constraints_model_set(cfg, dims, nlp_in, 0, b"ubx", <void *> &x0[0])
+        for k in range(self.N):
+            common.ocp_nlp_cost_model_set(cfg, dims, nlp_in, k, b"yref", <void *> &yref[k, 0])
+            common.ocp_nlp_constraints_model_set(cfg, dims, nlp_in, k, b"lbu", <void *> &lbu[k, 0])
+            common.ocp_nlp_constraints_model_set(cfg, dims, nlp_in, k, b"ubu", <void *> &ubu[k, 0])
+            common.ocp_nlp_out_set(cfg, dims, out, k, b"x", <void *> &x_guess[k, 0])
+            common.ocp_nlp_out_set(cfg, dims, out, k, b"u", <void *> &u_guess[k, 0])
+        common.ocp_nlp_cost_model_set(cfg, dims, nlp_in, self.N, b"yref", <void *> &yref_e[0])
+        common.ocp_nlp_out_set(cfg, dims, out, self.N, b"x", <void *> &x_guess[self.N, 0])
+
+    def solve(self):
+        """One call of the acados solver; returns its status (0: success)."""
+        return generated.acados_solve(self.capsule)
+
+    def solution(self, double[:, ::1] x_out, double[:, ::1] u_out):
+        """Copy the current iterate into ``x_out`` (N+1, nx) and ``u_out`` (N, nu)."""
+        cdef int k
+        self._check(x_out, self.N + 1, self.nx, "x_out")
+        self._check(u_out, self.N, self.nu, "u_out")
+        for k in range(self.N):
+            common.ocp_nlp_out_get(self.config, self.dims, self.nlp_out, k, b"x", <void *> &x_out[k, 0])
+            common.ocp_nlp_out_get(self.config, self.dims, self.nlp_out, k, b"u", <void *> &u_out[k, 0])
+        common.ocp_nlp_out_get(self.config, self.dims, self.nlp_out, self.N, b"x", <void *> &x_out[self.N, 0])
+
+    def solve_time(self):
+        """acados' own time of the last solve (s)."""
+        cdef double t = 0.0
+        common.ocp_nlp_get(self.config, self.solver, b"time_tot", <void *> &t)
+        return t
+
+    def reset(self):
+        """Zero the iterate and the QP solver's memory (after a failure)."""
+        generated.acados_reset(self.capsule, 1)
+'''
 
 
 def acados_cache_dir() -> Path:
-    """Root folder of the generated solvers."""
+    """Root folder of the generated solvers: ``$RKMPC_CACHE_DIR/acados`` or ``~/.cache/rkmpc/acados``."""
     root = os.environ.get("RKMPC_CACHE_DIR")
     base = Path(root) if root else Path.home() / ".cache" / "rkmpc"
     return base / "acados"
@@ -76,12 +201,19 @@ def _import_acados() -> tuple[Any, Any]:
     """Import acados, set its environment and preload its libraries.
 
     Returns the ``acados`` package (paths) and ``acados_template``.
+
+    Raises
+    ------
+    ImportError
+        When acados or cython is not installed.
     """
     try:
         import acados  # comma-deps-acados: the C library and the template live under this package
         from acados import acados_template
     except ImportError as exc:  # pragma: no cover - depends on the environment
         raise ImportError(_INSTALL_HINT) from exc
+    if importlib.util.find_spec("Cython") is None:  # pragma: no cover - depends on the environment
+        raise ImportError(_INSTALL_HINT)
     os.environ.setdefault("ACADOS_SOURCE_DIR", acados.DIR)
     os.environ.setdefault("TERA_PATH", acados.TERA_PATH)
     os.environ.setdefault("ACADOS_PYTHON_INTERFACE_PATH", acados.TEMPLATE_DIR)
@@ -93,251 +225,357 @@ def _import_acados() -> tuple[Any, Any]:
     return acados, acados_template
 
 
-class AcadosKinematicNMPC(Controller):
+def _package_version(name: str) -> str:
+    try:
+        return version(name)
+    except PackageNotFoundError:  # pragma: no cover - depends on the environment
+        return "unknown"
+
+
+@contextlib.contextmanager
+def _locked(path: Path) -> Iterator[None]:
+    """Hold an exclusive lock on ``path`` (a no-op where ``fcntl`` is missing)."""
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - not POSIX
+        yield
+        return
+    with open(path, "a") as handle:
+        fcntl.flock(handle, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(handle, fcntl.LOCK_UN)
+
+
+def _run(cmd: list[str], cwd: Path) -> None:
+    """Run a build command; raise RuntimeError with its output when it fails."""
+    done = subprocess.run(cmd, cwd=cwd, capture_output=True, text=True, check=False)
+    if done.returncode != 0:
+        raise RuntimeError(f"acados build step failed: {' '.join(cmd)}\n{done.stdout}\n{done.stderr}")
+
+
+def _build_bulk_module(acados: Any, code_dir: Path, model_name: str) -> Path:
+    """Compile :data:`_BULK_PYX` against the generated solver in ``code_dir``; returns the module file."""
+    module = f"{model_name}_bulk"
+    (code_dir / f"{module}.pyx").write_text(_BULK_PYX)
+    cython = [sys.executable, "-m", "cython", "-3", "-I", acados.TEMPLATE_DIR, "-I", str(code_dir)]
+    _run([*cython, "-o", f"{module}.c", f"{module}.pyx"], code_dir)
+    include = Path(acados.INCLUDE_DIR)
+    includes = [code_dir, include, include / "acados", include / "blasfeo" / "include"]
+    includes += [include / "hpipm" / "include", include / "qpOASES_e", Path(sysconfig.get_paths()["include"])]
+    libs = [f"acados_ocp_solver_{model_name}", "acados", "hpipm", "blasfeo", "m"]
+    target = code_dir / f"{module}{sysconfig.get_config_var('EXT_SUFFIX') or '.so'}"
+    cc = os.environ.get("CC", "cc").split()
+    _run(
+        [*cc, "-O2", "-fPIC", "-shared", "-o", str(target), f"{module}.c"]
+        + [f"-I{path}" for path in includes]
+        + [f"-L{code_dir}", f"-L{acados.LIB_DIR}"]
+        + [f"-l{lib}" for lib in libs]
+        + [f"-Wl,-rpath,{code_dir}", f"-Wl,-rpath,{acados.LIB_DIR}"],
+        code_dir,
+    )
+    return target
+
+
+def _load_module(name: str, path: Path) -> Any:
+    spec = importlib.util.spec_from_file_location(name, path)
+    if spec is None or spec.loader is None:  # pragma: no cover - defensive
+        raise ImportError(f"cannot load {path}")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+class AcadosKinematicNMPC(KinematicNMPC):
     """Kinematic bicycle NMPC solved by one acados real-time iteration per period.
+
+    The NLP, state estimate and fall-backs are those of
+    :class:`rkmpc.control.nmpc.KinematicNMPC`; see the module docstring for
+    how the NLP is posed to acados.
 
     Parameters
     ----------
     reference : Reference
         Path and speed profile to track.
     vehicle : VehicleParams
-        Wheelbase, input limits and steering-rate limit.
+        Wheelbase, input limits and steering-rate limit (and, for the dynamic
+        variant, the nominal dynamic parameters).
     config : NMPCConfig, optional
-        Weights, horizon and period (the solver fields are ignored).
+        Weights, horizon, period, RK4 sub-steps and Hessian (``"exact"``, with
+        the Hessian mirrored to be positive definite, or ``"gauss-newton"``;
+        None for the class default) and ``warm_start``; ``solver``,
+        ``max_iterations``, ``max_cpu_time`` and ``tolerance`` are not used (one
+        real-time iteration per step).
     qp_solver : str
-        ``"PARTIAL_CONDENSING_HPIPM"`` (default) or ``"FULL_CONDENSING_QPOASES"``.
+        One of :data:`QP_SOLVERS`; dense qpOASES by default.
     cache_dir : path, optional
-        Where to build the solver; :func:`acados_cache_dir` by default.
+        Root of the generated solvers; :func:`acados_cache_dir` by default.
 
     Raises
     ------
     ImportError
-        When acados (``comma-deps-acados``) is not installed.
+        When acados (``comma-deps-acados``) or cython is not installed.
+    ParameterError
+        For an unknown QP solver or an unsupported Hessian.
+    RuntimeError
+        When generating or compiling the solver fails.
+
+    Attributes
+    ----------
+    build_dir : pathlib.Path
+        Folder of the generated solver.
+    built : bool
+        Whether this construction generated and compiled the solver (False
+        when it was found in the cache).
+    last_solve_time : float
+        acados' own time of the last solve (s), without the Python around it.
     """
 
     name = "nmpc-acados"
-    nx = 5
+    default_hessian = "gauss-newton"
+    #: Tag of the generated model's name.
+    model_tag = "kin"
 
     def __init__(
         self,
         reference: Reference,
         vehicle: VehicleParams,
         config: NMPCConfig | None = None,
-        qp_solver: str = "PARTIAL_CONDENSING_HPIPM",
+        qp_solver: str = "FULL_CONDENSING_QPOASES",
         cache_dir: str | os.PathLike[str] | None = None,
+        **model_options: Any,
     ) -> None:
         self._acados, self._template = _import_acados()
-        super().__init__()
-        if qp_solver not in _QP_SOLVERS:
-            raise ValueError(f"qp_solver must be one of {_QP_SOLVERS}, got {qp_solver!r}")
-        self.reference = reference
-        self.vehicle = vehicle
-        self.config = config if config is not None else NMPCConfig()
+        if qp_solver not in QP_SOLVERS:
+            raise ParameterError(f"qp_solver must be one of {QP_SOLVERS}, got {qp_solver!r}")
         self.qp_solver = qp_solver
-        self._guard = CommandGuard(vehicle, self.config.dt, self.config.horizon)
-        self.steer_step_max = self._guard.steer_step_max
-        self.u_min, self.u_max = self._guard.u_min, self._guard.u_max
-        root = Path(cache_dir) if cache_dir is not None else acados_cache_dir()
-        self.build_dir = root / self._problem_hash()
-        self._solver = self._build_solver()
-        self._reset()
+        self._cache_root = Path(cache_dir) if cache_dir is not None else acados_cache_dir()
+        self.built = False
+        self.last_solve_time = math.nan
+        super().__init__(reference, vehicle, config, **model_options)
 
     # ------------------------------------------------------------------ build
-    def _problem(self) -> dict[str, Any]:
-        cfg = self.config
-        return {
-            "code_version": _CODE_VERSION,
-            "horizon": cfg.horizon,
-            "dt": cfg.dt,
-            "weights": [
-                cfg.position_weight,
-                cfg.heading_weight,
-                cfg.speed_weight,
-                cfg.steer_weight,
-                cfg.speed_rate_weight,
-                cfg.steer_rate_weight,
-                cfg.terminal_factor,
-            ],
-            "wheelbase": self.vehicle.wheelbase,
-            "u_min": self.u_min.tolist(),
-            "u_max": self.u_max.tolist(),
-            "max_rate": self.vehicle.steering.max_rate,
-            "qp_solver": self.qp_solver,
-            "acados": getattr(self._acados, "__file__", ""),
-        }
-
-    def _problem_hash(self) -> str:
-        text = json.dumps(self._problem(), sort_keys=True)
-        return hashlib.sha256(text.encode()).hexdigest()[:16]
-
     def _build_solver(self) -> Any:
+        if self.hessian not in _HESSIANS:
+            raise ParameterError(
+                f"{type(self).__name__} supports the Hessians {tuple(_HESSIANS)}, got {self.hessian!r}"
+            )
+        ocp, description = self._ocp()
+        digest = hashlib.sha256(json.dumps(description, sort_keys=True).encode()).hexdigest()[:16]
+        model_name = f"rkmpc_{self.model_tag}_{digest}"
+        ocp.model.name = model_name
+        self._cache_root.mkdir(parents=True, exist_ok=True)
+        self.build_dir = self._cache_root / model_name
+        code_dir = self.build_dir / "c_generated_code"
+        ext = sysconfig.get_config_var("EXT_SUFFIX") or ".so"
+        module_file = code_dir / f"{model_name}_bulk{ext}"
+        stamp = self.build_dir / "built.json"
+        with _locked(self._cache_root / f"{model_name}.lock"):
+            if not (stamp.exists() and module_file.exists()):
+                self._generate(ocp, code_dir)
+                _build_bulk_module(self._acados, code_dir, model_name)
+                stamp.write_text(json.dumps(description, sort_keys=True, indent=1))
+                self.built = True
+        module = _load_module(f"{model_name}_bulk", module_file)
+        n = self.config.horizon
+        nxa = self.nx + _NU
+        self._ny = 3 + 2 * _NU
+        return module.BulkSolver(n, nxa, _NU, self._ny, 3)
+
+    def _generate(self, ocp: Any, code_dir: Path) -> None:
+        """Generate the C code of ``ocp`` into ``code_dir`` and build its shared library."""
+        at = self._template
+        shutil.rmtree(self.build_dir, ignore_errors=True)
+        self.build_dir.mkdir(parents=True)
+        ocp.code_export_directory = str(code_dir)
+        cwd = os.getcwd()
+        try:
+            # acados_template writes some files relative to the working directory, and prints.
+            os.chdir(self.build_dir)
+            with contextlib.redirect_stdout(io.StringIO()):
+                at.AcadosOcpSolver.generate(ocp, json_file=str(self.build_dir / "acados_ocp.json"))
+                at.AcadosOcpSolver.build(str(code_dir), with_cython=False, verbose=False)
+        finally:
+            os.chdir(cwd)
+        if not (code_dir / f"libacados_ocp_solver_{ocp.model.name}.so").exists():
+            raise RuntimeError(f"acados: building the solver in {code_dir} failed")
+
+    def _ocp(self) -> tuple[Any, dict[str, Any]]:
+        """The acados OCP and a description of everything that enters its generated code."""
         import casadi as ca
 
         at = self._template
         cfg = self.config
-        n, dt = cfg.horizon, cfg.dt
-        big = 1e3
+        n, dt, nx = cfg.horizon, cfg.dt, self.nx
+        nxa = nx + _NU
 
         model = at.AcadosModel()
-        model.name = "rkmpc_kin"
-        x = ca.SX.sym("x", self.nx)
-        u = ca.SX.sym("u", 2)
-        th, v, delta = x[2], x[3], x[4]
+        x = ca.SX.sym("x", nxa)
+        u = ca.SX.sym("u", _NU)
         model.x = x
         model.u = u
-        model.xdot = ca.SX.sym("xdot", self.nx)
-        model.f_expl_expr = ca.vertcat(
-            v * ca.cos(th), v * ca.sin(th), v * ca.tan(delta) / self.vehicle.wheelbase, u[0], u[1]
-        )
+        model.disc_dyn_expr = ca.vertcat(self.model_map(x[:nx], u), u)
 
         ocp = at.AcadosOcp()
         ocp.model = model
         ocp.dims.N = n
         ocp.solver_options.tf = n * dt
 
-        # Linear least squares on y = [x, u]: poses and commands against the reference, rates.
-        ny = self.nx + 2
-        w_state = [cfg.position_weight, cfg.position_weight, cfg.heading_weight]
-        w_state += [cfg.speed_weight, cfg.steer_weight]
-        w_rate = [cfg.speed_rate_weight * dt**2, cfg.steer_rate_weight * dt**2]
-        ocp.cost.cost_type = "LINEAR_LS"
-        ocp.cost.cost_type_e = "LINEAR_LS"
-        ocp.cost.W = np.diag(w_state + w_rate)
-        ocp.cost.W_e = np.diag([cfg.terminal_factor * w for w in w_state[:3]] + w_state[3:])
-        vx = np.zeros((ny, self.nx))
-        vx[: self.nx, : self.nx] = np.eye(self.nx)
-        vu = np.zeros((ny, 2))
-        vu[self.nx :, :] = np.eye(2)
-        ocp.cost.Vx = vx
-        ocp.cost.Vu = vu
-        ocp.cost.Vx_e = np.eye(self.nx)
-        ocp.cost.yref = np.zeros(ny)
-        ocp.cost.yref_e = np.zeros(self.nx)
+        # y = [pose, u, u - u_prev]; acados scales the stage cost by the step dt (not the
+        # terminal one), so the stage weights are divided by dt to keep the NMPC's cost.
+        w_pose = [cfg.position_weight, cfg.position_weight, cfg.heading_weight]
+        w_stage = [*w_pose, cfg.speed_weight, cfg.steer_weight, cfg.speed_rate_weight, cfg.steer_rate_weight]
+        vx = np.zeros((3 + 2 * _NU, nxa))
+        vx[:3, :3] = np.eye(3)
+        vx[3 + _NU :, nx:] = -np.eye(_NU)
+        vu = np.zeros((3 + 2 * _NU, _NU))
+        vu[3 : 3 + _NU] = np.eye(_NU)
+        vu[3 + _NU :] = np.eye(_NU)
+        vx_e = np.zeros((3, nxa))
+        vx_e[:, :3] = np.eye(3)
+        cost = ocp.cost
+        cost.cost_type = "LINEAR_LS"
+        cost.cost_type_e = "LINEAR_LS"
+        cost.W = np.diag(w_stage) / dt
+        cost.W_e = np.diag([cfg.terminal_factor * w for w in w_pose])
+        cost.Vx, cost.Vu, cost.Vx_e = vx, vu, vx_e
+        cost.yref = np.zeros(3 + 2 * _NU)
+        cost.yref_e = np.zeros(3)
 
-        # Rate bounds on the controls; command bounds on the states v, delta (stages 1..N).
-        ocp.constraints.idxbu = np.array([0, 1])
-        ocp.constraints.lbu = np.array([-big, -self.vehicle.steering.max_rate])
-        ocp.constraints.ubu = np.array([big, self.vehicle.steering.max_rate])
-        ocp.constraints.idxbx = np.array([3, 4])
-        ocp.constraints.lbx = self.u_min.copy()
-        ocp.constraints.ubx = self.u_max.copy()
-        ocp.constraints.idxbx_e = np.array([3, 4])
-        ocp.constraints.lbx_e = self.u_min.copy()
-        ocp.constraints.ubx_e = self.u_max.copy()
-        ocp.constraints.x0 = np.zeros(self.nx)
+        # Input bounds (the speed bound is set per stage), and |delta - delta_prev| <= max_rate dt.
+        con = ocp.constraints
+        con.x0 = np.zeros(nxa)
+        con.idxbu = np.arange(_NU)
+        con.lbu = self.u_min.copy()
+        con.ubu = self.u_max.copy()
+        c_mat = np.zeros((1, nxa))
+        c_mat[0, nx + 1] = -1.0
+        d_mat = np.zeros((1, _NU))
+        d_mat[0, 1] = 1.0
+        con.C, con.D = c_mat, d_mat
+        con.lg = np.array([-self.steer_step_max])
+        con.ug = np.array([self.steer_step_max])
 
         opts = ocp.solver_options
-        opts.qp_solver = self.qp_solver
-        opts.hessian_approx = "GAUSS_NEWTON"
-        opts.integrator_type = "ERK"
-        opts.sim_method_num_stages = 4
-        opts.sim_method_num_steps = 1
+        opts.integrator_type = "DISCRETE"
         opts.nlp_solver_type = "SQP_RTI"
-        opts.print_level = 0
+        opts.hessian_approx = _HESSIANS[self.hessian]
+        if self.hessian == "exact":
+            opts.regularize_method = "MIRROR"
+        opts.qp_solver = self.qp_solver
         if self.qp_solver == "PARTIAL_CONDENSING_HPIPM":
             opts.qp_solver_cond_N = n
-            opts.qp_solver_warm_start = 1
+        opts.qp_solver_warm_start = 1
         opts.qp_solver_iter_max = 50
+        opts.print_level = 0
 
-        self.build_dir.mkdir(parents=True, exist_ok=True)
-        ocp.code_export_directory = str(self.build_dir / "c_generated_code")
-        json_file = str(self.build_dir / "acados_ocp.json")
-        lib = Path(ocp.code_export_directory) / f"libacados_ocp_solver_{model.name}.so"
-        built = lib.exists() and Path(json_file).exists()
-        cwd = os.getcwd()
-        try:
-            # acados_template writes some files relative to the working directory.
-            os.chdir(self.build_dir)
-            return at.AcadosOcpSolver(
-                ocp, json_file=json_file, build=not built, generate=not built, verbose=False
-            )
-        finally:
-            os.chdir(cwd)
+        description = {
+            "code_version": _CODE_VERSION,
+            "pyx": hashlib.sha256(_BULK_PYX.encode()).hexdigest(),
+            "dynamics": str(model.disc_dyn_expr),
+            "horizon": n,
+            "dt": dt,
+            "W": cost.W.tolist(),
+            "W_e": cost.W_e.tolist(),
+            "u_min": self.u_min.tolist(),
+            "u_max": self.u_max.tolist(),
+            "steer_step_max": self.steer_step_max,
+            "hessian": self.hessian,
+            "qp_solver": self.qp_solver,
+            "acados": [getattr(self._acados, "__file__", ""), _package_version("comma-deps-acados")],
+            "cython": _package_version("cython"),
+            "python": [sys.version, sysconfig.get_config_var("EXT_SUFFIX")],
+        }
+        return ocp, description
 
     # ------------------------------------------------------------------ controller
     def _reset(self) -> None:
-        self._s_hint: float | None = None
-        self._guard.reset()
-        # Previous solution in track coordinates: states (N+1, 5), controls (N, 2).
-        self._ws_states: np.ndarray | None = None
-        self._ws_controls: np.ndarray | None = None
-        self.last_plan: np.ndarray | None = None
-        self.last_states: np.ndarray | None = None
-        self.last_status = ""
+        super()._reset()
+        n, nxa = self.config.horizon, self.nx + _NU
+        # Warm start in track coordinates: augmented states (N+1, nx+2), inputs (N, 2).
+        self._ws_x: np.ndarray | None = None
+        self._ws_u: np.ndarray | None = None
+        self._yref = np.zeros((n, self._ny))
+        self._yref_e = np.zeros(3)
+        self._lbu = np.tile(self.u_min, (n, 1))
+        self._ubu = np.tile(self.u_max, (n, 1))
+        self._x_out = np.zeros((n + 1, nxa))
+        self._u_out = np.zeros((n, _NU))
 
     def _step(self, observation: Observation) -> tuple[Command, str, str]:
         cfg = self.config
-        n = cfg.horizon
-        solver = self._solver
+        n, nx = cfg.horizon, self.nx
         proj = self.reference.project(observation.x, observation.y, self._s_hint)
         self._s_hint = proj.s
         ref = self.reference.horizon(proj.s, n, cfg.dt)
         u_ref = np.column_stack([ref.v[:n], ref.delta[:n]])
         if self._guard.previous is None:
-            self._guard.previous = np.array([observation.speed, u_ref[0, 1]])
+            self._guard.previous = self._first_previous_input(observation, u_ref)
         yaw = ref.theta[0] + wrap_angle(observation.yaw - ref.theta[0])
         origin = np.array([ref.x[0], ref.y[0]])
-        x0 = np.array([observation.x - origin[0], observation.y - origin[1], yaw, *self._guard.previous])
+        x0 = np.concatenate([self._initial_state(observation, yaw), self._guard.previous])
+        x0[:2] -= origin
 
-        # Initial guess: the shifted previous solution in the new frame, or the reference.
-        if self._ws_states is not None and self._ws_controls is not None:
-            states = np.concatenate([self._ws_states[1:], self._ws_states[-1:]])
-            controls = np.concatenate([self._ws_controls[1:], np.zeros((1, 2))])
-            states[:, 2] -= _TWO_PI * round((states[0, 2] - yaw) / _TWO_PI)
-            states[:, :2] -= origin
-        else:
-            states = np.column_stack(
-                [ref.x - origin[0], ref.y - origin[1], ref.theta, np.r_[u_ref[:1], u_ref]]
-            )
-            controls = np.zeros((n, 2))
-        states[0] = x0
+        yref = self._yref
+        yref[:, 0] = ref.x[:n] - origin[0]
+        yref[:, 1] = ref.y[:n] - origin[1]
+        yref[:, 2] = ref.theta[:n]
+        yref[:, 3:5] = u_ref
+        self._yref_e[:] = (ref.x[n] - origin[0], ref.y[n] - origin[1], ref.theta[n])
+        self._ubu[:, 0] = np.minimum(self.u_max[0], u_ref[:, 0] + cfg.speed_margin)
+        self._lbu[:, 0] = np.minimum(self.u_min[0], self._ubu[:, 0])
+        x_guess, u_guess = self._initial_guess_rti(x0, origin, ref, u_ref)
 
-        solver.set(0, "lbx", x0)
-        solver.set(0, "ubx", x0)
-        u_ub = np.minimum(self.u_max[0], u_ref[:, 0] + cfg.speed_margin)
-        u_lb = np.minimum(self.u_min[0], u_ub)
-        zeros2 = np.zeros(2)
-        for k in range(n + 1):
-            solver.set(k, "x", states[k])
-            pose = [ref.x[k] - origin[0], ref.y[k] - origin[1], ref.theta[k]]
-            if k == 0:
-                solver.set(0, "yref", np.concatenate([x0, zeros2]))
-            else:
-                cmd = u_ref[k - 1]
-                bounds_lo = np.array([u_lb[k - 1], self.u_min[1]])
-                bounds_hi = np.array([u_ub[k - 1], self.u_max[1]])
-                solver.constraints_set(k, "lbx", bounds_lo)
-                solver.constraints_set(k, "ubx", bounds_hi)
-                if k < n:
-                    solver.set(k, "yref", np.concatenate([pose, cmd, zeros2]))
-                else:
-                    solver.set(k, "yref", np.concatenate([pose, cmd]))
-            if k < n:
-                solver.set(k, "u", controls[k])
+        solver = self._solver
         try:
+            solver.prepare(x0, yref, self._yref_e, self._lbu, self._ubu, x_guess, u_guess)
             status_code = int(solver.solve())
-            sol_x = np.array([solver.get(k, "x") for k in range(n + 1)])
-            sol_u = np.array([solver.get(k, "u") for k in range(n)])
-            finite = bool(np.all(np.isfinite(sol_x)) and np.all(np.isfinite(sol_u)))
+            solver.solution(self._x_out, self._u_out)
+            self.last_solve_time = float(solver.solve_time())
+            finite = bool(np.isfinite(self._x_out).all() and np.isfinite(self._u_out).all())
+            self.last_status = str(status_code)
         except Exception as exc:  # the loop must never crash on a solver error
             status_code, finite = -1, False
-            sol_x, sol_u = states, controls
             self.last_status = f"exception: {exc}"
-        else:
-            self.last_status = str(status_code)
         if status_code == 0 and finite:
-            sol_x = sol_x.copy()
-            sol_x[:, :2] += origin
-            self._ws_states, self._ws_controls = sol_x, sol_u
-            plan = sol_x[1:, 3:5].copy()
+            states = self._x_out.copy()
+            states[:, :2] += origin
+            plan = self._u_out.copy()
+            self._ws_x, self._ws_u = states, plan
             u = self._guard.accept(plan)
             self.last_plan = plan
-            self.last_states = sol_x
+            self.last_states = states[:, :nx]
             flag, message = "ok", ""
         else:
+            # Keep the guess (one step older) as the next warm start; clear acados' memory.
+            self._ws_x, self._ws_u = None, None
+            if np.isfinite(x_guess[1:]).all() and np.isfinite(u_guess).all():
+                self._ws_x = x_guess + np.r_[origin, np.zeros(x_guess.shape[1] - 2)]
+                self._ws_u = u_guess
+            with contextlib.suppress(Exception):
+                solver.reset()
             u = self._guard.fallback(u_ref[0])
             self.last_plan = None
             self.last_states = None
             flag, message = "fallback", f"acados RTI failed: status {self.last_status}"
+            _LOG.debug("%s step %d: %s", self.name, self.step_count, message)
         u = self._guard.apply(u)
         return Command(speed=float(u[0]), steer=float(u[1])), flag, message
+
+    def _initial_guess_rti(
+        self, x0: np.ndarray, origin: np.ndarray, ref: ReferenceHorizon, u_ref: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Augmented states (relative to ``origin``) and inputs to start the iteration from."""
+        if self.config.warm_start and self._ws_x is not None and self._ws_u is not None:
+            states = np.concatenate([self._ws_x[1:], self._ws_x[-1:]])
+            inputs = np.concatenate([self._ws_u[1:], self._ws_u[-1:]])
+            states[:, :2] -= origin
+            states[:, 2] -= _TWO_PI * round((states[0, 2] - x0[2]) / _TWO_PI)
+        else:
+            model_states = self._reference_states(ref)
+            model_states[:, :2] -= origin
+            inputs = u_ref.copy()
+            states = np.column_stack([model_states, np.concatenate([x0[None, -_NU:], inputs])])
+        states[0] = x0
+        return np.ascontiguousarray(states), np.ascontiguousarray(inputs)
