@@ -71,3 +71,23 @@ def test_top_level_factory(builtin_scenario):
 
     ctrl = rkmpc.make_controller("pp", builtin_scenario.reference, builtin_scenario.vehicle)
     assert ctrl.name == "pp"
+
+
+def test_lmpc_with_factorised_hessian_matches_daqp_factorising_it(builtin_scenario):
+    # The LMPC factorises its Hessian with LAPACK; DAQP doing it itself gives the same commands.
+    from rkmpc.control.qp import make_qp
+
+    ref, veh = builtin_scenario.reference, builtin_scenario.vehicle
+    fast = make_controller("lmpc", ref, veh)
+    plain = make_controller("lmpc", ref, veh)
+    plain._qp = make_qp("daqp", max_iterations=plain.config.max_iterations)
+    path = ref.path
+    for s in np.linspace(1.0, 20.0, 12):
+        p = path.position(s)
+        yaw = float(path.heading(s))
+        obs = Observation(
+            x=float(p[0]) - 0.1 * math.sin(yaw), y=float(p[1]) + 0.1 * math.cos(yaw), yaw=yaw - 0.1, speed=2.5
+        )
+        a, b = fast.step(obs), plain.step(obs)
+        assert a.speed == pytest.approx(b.speed, rel=1e-9, abs=1e-12)
+        assert a.steer == pytest.approx(b.steer, rel=1e-9, abs=1e-12)

@@ -105,3 +105,67 @@ def test_lap_metrics_of_learned_run_are_complete(builtin_scenario, learned):
     result = simulate(make_plant("f1tenth"), ctrl, sc.track, sc.reference, SimConfig(max_time=2.0))
     metrics = lap_metrics(result)
     assert metrics["solve_ms_mean"] > 0 and metrics["fallback_count"] == 0
+
+
+def _observations(sc, n=10):
+    path = sc.reference.path
+    for s in np.linspace(1.0, 15.0, n):
+        p = path.position(s)
+        yaw = float(path.heading(s))
+        yield Observation(
+            x=float(p[0]) + 0.05 * math.sin(yaw),
+            y=float(p[1]) - 0.05 * math.cos(yaw),
+            yaw=yaw + 0.05,
+            speed=2.0,
+            yaw_rate=0.2,
+            steer_angle=0.05,
+        )
+
+
+def test_rkmpc_factorised_qps_match_daqp_factorising_them(builtin_scenario, learned):
+    # Both QPs of RKMPC have Hessians that change every step and are factorised with LAPACK;
+    # with DAQP factorising them itself, the commands are the same.
+    from rkmpc.control.qp import make_qp
+
+    sc = builtin_scenario
+    fast = make_controller("rkmpc", sc.reference, sc.vehicle, model=learned["rkmpc"])
+    plain = make_controller("rkmpc", sc.reference, sc.vehicle, model=learned["rkmpc"])
+    plain._qp = make_qp("daqp", max_iterations=plain.config.max_iterations)
+    plain.lmpc._qp = make_qp("daqp", max_iterations=plain.lmpc.config.max_iterations)
+    for obs in _observations(sc):
+        a, b = fast.step(obs), plain.step(obs)
+        assert fast.info.status == plain.info.status == "ok"
+        assert a.speed == pytest.approx(b.speed, rel=1e-9, abs=1e-12)
+        assert a.steer == pytest.approx(b.steer, rel=1e-9, abs=1e-12)
+
+
+def test_kmpc_gradient_equals_the_textbook_formula(builtin_scenario, learned):
+    # KMPC assembles its gradient from precomputed, doubled terms; check it against the plain formula.
+    from rkmpc.control.koopman_mpc import kmpc_features
+    from rkmpc.control.rkmpc import reference_in_local_frame
+
+    sc = builtin_scenario
+    ctrl = make_controller("kmpc", sc.reference, sc.vehicle, model=learned["kmpc"])
+    seen = []
+    update = ctrl._qp.update
+
+    def spy(**kwargs):
+        seen.append(kwargs["f"].copy())
+        update(**kwargs)
+
+    ctrl._qp.update = spy
+    p, n = ctrl.problem, ctrl.config.horizon
+    for obs in _observations(sc, n=4):
+        previous = None if ctrl._guard.previous is None else ctrl._guard.previous.copy()
+        ctrl.step(obs)
+        if previous is None:
+            continue
+        ref = sc.reference.horizon(ctrl._s_hint, n, ctrl.config.dt)
+        u_ref = np.column_stack([ref.v[:n], ref.delta[:n]]).ravel()
+        local = reference_in_local_frame(ref, obs).ravel()
+        d0 = np.zeros(2 * n)
+        d0[:2] = previous
+        z0 = learned["kmpc"].lift(kmpc_features(obs))
+        f = 2.0 * (ctrl._MtQ @ (ctrl._Mz @ z0 - local) - p.r_diag * u_ref - p.D.T @ (p.w_rate * d0))
+        np.testing.assert_allclose(seen[-1], f, rtol=1e-12, atol=1e-12)
+    assert len(seen) == 3

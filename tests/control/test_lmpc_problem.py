@@ -80,3 +80,42 @@ def test_general_condense_matches_kinematic_fast_path():
     Phi2, Gamma2 = condense(A, B)
     np.testing.assert_allclose(Phi2, Phi, atol=1e-12)
     np.testing.assert_allclose(Gamma2, Gamma, atol=1e-12)
+
+
+def test_prediction_matrices_equal_linearisation_condensed():
+    # The inlined linearisation along the horizon is the one of linearize_discrete.
+    from rkmpc.control.lmpc import condense
+
+    cfg = LMPCConfig()
+    prob = KinematicMPCProblem(cfg, f1tenth())
+    theta, v, delta = _reference(cfg.horizon, seed=7)
+    Phi, Gamma = prob.prediction_matrices(theta, v, delta)
+    Phi2, Gamma2 = condense(*linearize_discrete(theta, v, delta, f1tenth().wheelbase, cfg.dt))
+    np.testing.assert_allclose(Phi, Phi2, rtol=1e-13, atol=1e-15)
+    np.testing.assert_allclose(Gamma, Gamma2, rtol=1e-13, atol=1e-15)
+
+
+def test_qp_numbers_equal_the_textbook_formulas():
+    # Precomputed (doubled, tiled) weights and bounds give the plainly assembled QP.
+    cfg = LMPCConfig(horizon=10, terminal_factor=3.0, speed_margin=0.2)
+    veh = f1tenth()
+    prob = KinematicMPCProblem(cfg, veh)
+    theta, v, delta = _reference(10, seed=2)
+    Phi, Gamma = prob.prediction_matrices(theta, v, delta)
+    u_ref = np.column_stack([v, delta])
+    u_prev = np.array([1.5, 0.05])
+    xi0 = np.array([0.1, -0.2, 0.05])
+    H, f, lb, ub, lbA, ubA = prob.qp_numbers(xi0, u_ref, u_prev, Phi, Gamma)
+    Q = np.diag(prob.q_diag)
+    D = prob.D
+    W = np.diag(prob.w_rate)
+    d = (u_ref - np.vstack([u_prev, u_ref[:-1]])).ravel()
+    np.testing.assert_allclose(H, 2 * (Gamma.T @ Q @ Gamma + np.diag(prob.r_diag) + D.T @ W @ D), rtol=1e-12)
+    np.testing.assert_allclose(f, 2 * (Gamma.T @ Q @ Phi @ xi0 + D.T @ W @ d), rtol=1e-12, atol=1e-14)
+    ub_plain = np.tile(prob.u_max, 10) - u_ref.ravel()
+    ub_plain[0::2] = np.minimum(ub_plain[0::2], cfg.speed_margin)
+    lb_plain = np.minimum(np.tile(prob.u_min, 10) - u_ref.ravel(), ub_plain)
+    np.testing.assert_array_equal(ub, ub_plain)
+    np.testing.assert_array_equal(lb, lb_plain)
+    np.testing.assert_array_equal(lbA, -prob.steer_step_max - d[1::2])
+    np.testing.assert_array_equal(ubA, prob.steer_step_max - d[1::2])

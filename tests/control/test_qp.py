@@ -65,3 +65,39 @@ def test_iteration_limit_reports_failure():
 def test_unknown_solver():
     with pytest.raises(ValueError, match="known"):
         make_qp("cplex")
+
+
+@pytest.mark.parametrize("m", [5, 0])
+def test_factorized_daqp_matches_daqp_as_the_hessian_changes(m):
+    # Factorising H with LAPACK and handing DAQP the problem in Cholesky coordinates
+    # gives DAQP's own answer, with and without general constraints, across updates.
+    H, f, lb, ub, A, lbA, ubA = _random_qp(4, m=m)
+    plain, fact = make_qp("daqp"), make_qp("daqp", factorize=True)
+    for qp in (plain, fact):
+        qp.setup(H, f, lb, ub, A, lbA, ubA)
+    np.testing.assert_allclose(fact.solve().x, plain.solve().x, rtol=1e-9, atol=1e-12)
+    for seed in range(5, 10):
+        H2, f2, *_ = _random_qp(seed, m=m)
+        scale = 0.2 * (seed - 4)
+        for qp in (plain, fact):
+            qp.update(H=H2, f=f2, lb=-scale * np.ones(12), ub=scale * np.ones(12))
+        a, b = plain.solve(), fact.solve()
+        assert a.solved and b.solved
+        np.testing.assert_allclose(b.x, a.x, rtol=1e-9, atol=1e-12)
+    # Only the linear term (the factor is kept).
+    for qp in (plain, fact):
+        qp.update(f=-f)
+    np.testing.assert_allclose(fact.solve().x, plain.solve().x, rtol=1e-9, atol=1e-12)
+
+
+def test_factorized_daqp_reports_an_indefinite_hessian_and_recovers():
+    H, f, lb, ub, A, lbA, ubA = _random_qp(11)
+    qp = make_qp("daqp", factorize=True)
+    qp.setup(H, f, lb, ub, A, lbA, ubA)
+    qp.update(H=-H)
+    result = qp.solve()
+    assert not result.solved and result.status == "nonconvex"
+    qp.update(H=H, f=f)
+    ref = make_qp("daqp")
+    ref.setup(H, f, lb, ub, A, lbA, ubA)
+    np.testing.assert_allclose(qp.solve().x, ref.solve().x, rtol=1e-9, atol=1e-12)

@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
+from time import perf_counter
 
 import numpy as np
 
@@ -134,8 +135,6 @@ class Controller(ABC):
         Command
             Speed (m/s) and front wheel angle (rad) set-points.
         """
-        from time import perf_counter
-
         t0 = perf_counter()
         command, status, message = self._step(observation)
         elapsed = perf_counter() - t0

@@ -36,6 +36,9 @@ class CommandGuard:
         self.u_max = np.array([vehicle.drive.max_speed, vehicle.steering.max_angle])
         self.steer_step_max = vehicle.steering.max_rate * dt
         self.horizon = horizon
+        # The same bounds as floats, for the per-step clipping of two numbers.
+        self._lo = (float(self.u_min[0]), float(self.u_min[1]))
+        self._hi = (float(self.u_max[0]), float(self.u_max[1]))
         self.reset()
 
     def reset(self) -> None:
@@ -59,11 +62,13 @@ class CommandGuard:
 
     def apply(self, u: np.ndarray) -> np.ndarray:
         """Clip ``u`` to the bounds and the steering step, remember it and return it."""
-        steer = float(u[1])
+        speed, steer = float(u[0]), float(u[1])
         if self.previous is not None:
             prev = float(self.previous[1])
             steer = min(max(steer, prev - self.steer_step_max), prev + self.steer_step_max)
-        applied = np.clip(np.array([u[0], steer], dtype=float), self.u_min, self.u_max)
+        # Clip to the bounds as numpy.clip would (NaN stays NaN), on plain floats.
+        lo, hi = self._lo, self._hi
+        applied = np.array([min(max(speed, lo[0]), hi[0]), min(max(steer, lo[1]), hi[1])])
         self.previous = applied
         return applied
 

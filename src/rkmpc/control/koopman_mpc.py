@@ -72,6 +72,11 @@ class KoopmanMPC(Controller):
         MtQ = self._Mu.T * p.q_diag
         self._MtQ = MtQ
         self._H = 2.0 * (MtQ @ self._Mu + np.diag(p.r_diag) + p.DtWD)
+        # Doubled gradient terms (2 (a - b - c) is assembled as 2a - 2b - 2c, exactly):
+        # only the first input's rate penalty involves the previous command.
+        self._MtQ2 = 2.0 * MtQ
+        self._r2 = 2.0 * p.r_diag
+        self._w2_first = 2.0 * p.w_rate[:2]
         self._qp = make_qp(self.config.solver, max_iterations=self.config.max_iterations)
         self._guard = CommandGuard(vehicle, self.config.dt, n)
         self._s_hint: float | None = None
@@ -86,31 +91,39 @@ class KoopmanMPC(Controller):
         proj = self.reference.project(observation.x, observation.y, self._s_hint)
         self._s_hint = proj.s
         ref = self.reference.horizon(proj.s, n, cfg.dt)
-        u_ref = np.column_stack([ref.v[:n], ref.delta[:n]]).ravel()
-        if self._guard.previous is None:
-            self._guard.previous = np.array([observation.speed, u_ref[1]])
+        u_ref = np.empty(2 * n)
+        u_ref[0::2] = ref.v[:n]
+        u_ref[1::2] = ref.delta[:n]
+        guard = self._guard
+        if guard.previous is None:
+            guard.previous = np.array([observation.speed, u_ref[1]])
+        previous = guard.previous
         x0 = kmpc_features(observation)
-        if not np.all(np.isfinite(x0)):
+        if not np.isfinite(x0).all():
             return self._fallback(u_ref, "kmpc needs measured speed, yaw rate and wheel angle")
         z0 = self.model.lift(x0)
-        local = reference_in_local_frame(ref, observation).ravel()
-        d0 = np.zeros(2 * n)
-        d0[:2] = self._guard.previous
-        f = 2.0 * (self._MtQ @ (self._Mz @ z0 - local) - p.r_diag * u_ref - p.D.T @ (p.w_rate * d0))
-        lb = np.tile(p.u_min, n)
-        ub = np.tile(p.u_max, n)
-        ub[0::2] = np.minimum(ub[0::2], u_ref[0::2] + cfg.speed_margin)
-        lb = np.minimum(lb, ub)
-        lbA = -p.steer_step_max + d0[1::2]
-        ubA = p.steer_step_max + d0[1::2]
+        local = reference_in_local_frame(ref, observation).reshape(-1)
+        # f = 2 (M' Q (Mz z0 - local) - R u_ref - D' W d0) with d0 = [u_prev, 0, ...].
+        np.subtract(self._Mz @ z0, local, out=local)
+        f = self._MtQ2 @ local
+        f -= self._r2 * u_ref
+        f[:2] -= self._w2_first * previous
+        lb = p.U_min.copy()
+        ub = p.U_max.copy()
+        np.minimum(ub[0::2], u_ref[0::2] + cfg.speed_margin, out=ub[0::2])
+        np.minimum(lb, ub, out=lb)
+        lbA = np.full(n, -p.steer_step_max)
+        ubA = np.full(n, p.steer_step_max)
+        lbA[0] += previous[1]
+        ubA[0] += previous[1]
         if not self._qp.is_setup:
             self._qp.setup(self._H, f, lb, ub, p.A_rate, lbA, ubA)
         else:
             self._qp.update(f=f, lb=lb, ub=ub, lbA=lbA, ubA=ubA)
         result = self._qp.solve()
-        if not result.solved or not np.all(np.isfinite(result.x)):
+        if not result.solved or not np.isfinite(result.x).all():
             return self._fallback(u_ref, f"QP failed: {result.status}")
-        return self._command(self._guard.accept(result.x.reshape(n, 2))), "ok", ""
+        return self._command(guard.accept(result.x.reshape(n, 2))), "ok", ""
 
     def _fallback(self, u_ref: np.ndarray, message: str) -> tuple[Command, str, str]:
         return self._command(self._guard.fallback(u_ref[:2])), "fallback", message

@@ -9,6 +9,12 @@ The linearised matrices ``A_k`` have the form ``I + E_k`` with ``E_k`` non-zero
 only in the heading column, so any product ``A_k ... A_i`` equals
 ``I + sum(E_j)``. The condensed prediction matrices are therefore built from
 cumulative sums in a few vectorised operations, without a loop over the horizon.
+
+Everything that depends only on the weights and the horizon (tiled bounds,
+weights, the rate penalty) is computed once; a step builds the prediction, the
+QP numbers and the command with a few dozen small numpy operations. The QP's
+Hessian changes at every step, so it is factorised with LAPACK rather than by
+the QP solver (see :class:`rkmpc.control.qp.DaqpQP`).
 """
 
 from __future__ import annotations
@@ -24,7 +30,6 @@ from rkmpc.control.base import Command, Controller, Observation
 from rkmpc.control.guard import CommandGuard
 from rkmpc.control.qp import make_qp
 from rkmpc.errors import ParameterError
-from rkmpc.vehicle.kinematic import linearize_discrete
 from rkmpc.vehicle.params import VehicleParams
 
 if TYPE_CHECKING:
@@ -154,14 +159,14 @@ def condense(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """
     n, nx, nu = B.shape
     Phi = np.empty((n, nx, nx))
-    Gamma = np.zeros((n, nx, n, nu))
-    prev_phi = np.eye(nx)
-    for k in range(n):
-        prev_phi = A[k] @ prev_phi
-        Phi[k] = prev_phi
-        if k:
-            Gamma[k, :, :k, :] = np.einsum("ij,jkl->ikl", A[k], Gamma[k - 1, :, :k, :])
-        Gamma[k, :, k, :] = B[k]
+    # Row block k of Gamma: columns of the inputs 0..k (the later ones stay zero).
+    Gamma = np.zeros((n, nx, n * nu))
+    np.copyto(Phi[0], A[0])
+    Gamma[0, :, :nu] = B[0]
+    for k in range(1, n):
+        np.matmul(A[k], Phi[k - 1], out=Phi[k])
+        np.matmul(A[k], Gamma[k - 1, :, : k * nu], out=Gamma[k, :, : k * nu])
+        Gamma[k, :, k * nu : (k + 1) * nu] = B[k]
     return Phi.reshape(n * nx, nx), Gamma.reshape(n * nx, n * nu)
 
 
@@ -199,13 +204,22 @@ class KinematicMPCProblem:
         self.D = D
         self.DtWD = D.T @ (self.w_rate[:, None] * D)
         self.R_plus_rate = np.diag(self.r_diag) + self.DtWD
+        # Doubled weights: scaling by two is exact, so 2 (a + b) is assembled as 2a + 2b.
+        self._q2 = 2.0 * q
+        self._w2 = 2.0 * self.w_rate
+        self._R2 = 2.0 * self.R_plus_rate
         # Steering-rate constraint rows: the steering entries of D U.
         self.A_rate = D[1::2, :].copy()
         self.steer_step_max = vehicle.steering.max_rate * config.dt
         self.u_min = np.array([vehicle.drive.min_speed, -vehicle.steering.max_angle])
         self.u_max = np.array([vehicle.drive.max_speed, vehicle.steering.max_angle])
-        # Causality mask: input i only affects states after it.
-        self._causal = np.tril(np.ones((n, n)))[:, None, :, None]
+        #: Input bounds over the horizon, shape (2N,).
+        self.U_min = np.tile(self.u_min, n)
+        self.U_max = np.tile(self.u_max, n)
+        # Causality mask of Gamma seen as (step k, state, input column 2i + j): i <= k.
+        self._causal = np.repeat(np.tril(np.ones((n, n))), 2, axis=1)[:, None, :]
+        # Phi of a model whose A_k are all the identity (the heading column is filled per step).
+        self._phi_identity = np.tile(np.eye(3), (n, 1, 1))
 
     def prediction_matrices(
         self, theta_r: np.ndarray, v_r: np.ndarray, delta_r: np.ndarray
@@ -225,21 +239,30 @@ class KinematicMPCProblem:
             Shape (3N, 2N), block lower triangular.
         """
         n = self.n
-        A, B = linearize_discrete(theta_r, v_r, delta_r, self.vehicle.wheelbase, self.config.dt)
-        ca = np.cumsum(A[:, 0, 2])
-        cb = np.cumsum(A[:, 1, 2])
-        # Block (k, i) of Gamma maps input i to state k+1: B_i plus the heading column sums.
-        G = np.empty((n, 3, n, 2))
-        B2 = B[:, 2, :]
-        G[:, 0] = B[:, 0, :] + (ca[:, None] - ca)[:, :, None] * B2
-        G[:, 1] = B[:, 1, :] + (cb[:, None] - cb)[:, :, None] * B2
-        G[:, 2] = B2
+        T, L = self.config.dt, self.vehicle.wheelbase
+        # The non-trivial entries of linearize_discrete's A_k and B_k, with the same arithmetic.
+        sin_t, cos_t = np.sin(theta_r), np.cos(theta_r)
+        ca = np.cumsum(-v_r * sin_t * T)
+        cb = np.cumsum(v_r * cos_t * T)
+        B2 = np.empty((n, 2))
+        B2[:, 0] = np.tan(delta_r) * T / L
+        B2[:, 1] = v_r * T / (L * np.cos(delta_r) ** 2)
+        b2 = B2.reshape(2 * n)
+        # Row k of block row r of Gamma, G[k, r], maps all inputs (column 2i + j: input j at
+        # step i) to state r of step k+1: B_i plus the sums of the heading columns of A_{i+1..k}.
+        # The speed column of B_i holds cos/sin(theta_i) T in x/y, its steering column nothing.
+        G = np.empty((n, 3, 2 * n))
+        np.subtract(ca[:, None], np.repeat(ca, 2), out=G[:, 0])
+        G[:, 0] *= b2
+        G[:, 0, 0::2] += cos_t * T
+        np.subtract(cb[:, None], np.repeat(cb, 2), out=G[:, 1])
+        G[:, 1] *= b2
+        G[:, 1, 0::2] += sin_t * T
+        G[:, 2] = b2
+        # Causality: input i only affects the states after it.
         G *= self._causal
         Gamma = G.reshape(3 * n, 2 * n)
-        Phi = np.zeros((n, 3, 3))
-        Phi[:, 0, 0] = 1.0
-        Phi[:, 1, 1] = 1.0
-        Phi[:, 2, 2] = 1.0
+        Phi = self._phi_identity.copy()
         Phi[:, 0, 2] = ca
         Phi[:, 1, 2] = cb
         return Phi.reshape(3 * n, 3), Gamma
@@ -270,20 +293,26 @@ class KinematicMPCProblem:
         tuple
             ``(H, f, lb, ub, lbA, ubA)``.
         """
-        GtQ = Gamma.T * self.q_diag
-        H = 2.0 * (GtQ @ Gamma + self.R_plus_rate)
+        # H = 2 (Gamma' Q Gamma + R + D' W D), f = 2 (Gamma' Q Phi xi0 + D' W d).
+        # Q Gamma scales rows of the C-ordered Gamma; BLAS reads its transpose in place.
+        GtQ2 = (self._q2[:, None] * Gamma).T
+        H = GtQ2 @ Gamma
+        H += self._R2
         # Rate offsets d: reference changes, and the jump from the previous input.
-        d = np.empty_like(u_ref)
-        d[0] = u_ref[0] - u_prev
-        d[1:] = u_ref[1:] - u_ref[:-1]
-        d = d.ravel()
-        f = 2.0 * (GtQ @ (Phi @ xi0) + self.D.T @ (self.w_rate * d))
-        u_flat = u_ref.ravel()
-        lb = np.tile(self.u_min, self.n) - u_flat
-        ub = np.tile(self.u_max, self.n) - u_flat
+        u_flat = u_ref.reshape(-1)
+        d = np.empty(2 * self.n)
+        np.subtract(u_flat[:2], u_prev, out=d[:2])
+        np.subtract(u_flat[2:], u_flat[:-2], out=d[2:])
+        # D' (2 W d), with D' the transposed first difference: (D' v)_i = v_i - v_{i+2}.
+        rate = self._w2 * d
+        rate[:-2] -= rate[2:]
+        f = GtQ2 @ (Phi @ xi0)
+        f += rate
+        lb = self.U_min - u_flat
+        ub = self.U_max - u_flat
         # The speed may not exceed the profile (which respects the grip limit) by more than a margin.
-        ub[0::2] = np.minimum(ub[0::2], self.config.speed_margin)
-        lb[0::2] = np.minimum(lb[0::2], ub[0::2])
+        np.minimum(ub[0::2], self.config.speed_margin, out=ub[0::2])
+        np.minimum(lb[0::2], ub[0::2], out=lb[0::2])
         d_steer = d[1::2]
         lbA = -self.steer_step_max - d_steer
         ubA = self.steer_step_max - d_steer
@@ -315,7 +344,8 @@ class LinearMPC(Controller):
         self.vehicle = vehicle
         self.config = config if config is not None else LMPCConfig()
         self.problem = KinematicMPCProblem(self.config, vehicle, extra_states=self.extra_states)
-        self._qp = make_qp(self.config.solver, max_iterations=self.config.max_iterations)
+        # The Hessian follows the reference: factorised by LAPACK, not by the solver, at every step.
+        self._qp = make_qp(self.config.solver, max_iterations=self.config.max_iterations, factorize=True)
         self._guard = CommandGuard(vehicle, self.config.dt, self.config.horizon)
         self._s_hint: float | None = None
         #: Last predicted absolute input sequence, shape (N, 2), and reference horizon.
@@ -349,27 +379,38 @@ class LinearMPC(Controller):
         self._s_hint = proj.s
         ref = self.reference.horizon(proj.s, n, cfg.dt)
         u_ref = self._reference_inputs(ref)
-        if self._guard.previous is None:
+        guard = self._guard
+        if guard.previous is None:
             # First step: the car is taken to hold its speed and the feed-forward angle.
-            self._guard.previous = np.array([observation.speed, u_ref[0, 1]])
+            guard.previous = np.array([observation.speed, u_ref[0, 1]])
         xi0, Phi, Gamma = self._prediction(observation, ref, u_ref)
-        H, f, lb, ub, lbA, ubA = self.problem.qp_numbers(xi0, u_ref, self._guard.previous, Phi, Gamma)
+        problem = self.problem
+        H, f, lb, ub, lbA, ubA = problem.qp_numbers(xi0, u_ref, guard.previous, Phi, Gamma)
         if not self._qp.is_setup:
-            self._qp.setup(H, f, lb, ub, self.problem.A_rate, lbA, ubA)
+            self._qp.setup(H, f, lb, ub, problem.A_rate, lbA, ubA)
         else:
             self._qp.update(H=H, f=f, lb=lb, ub=ub, lbA=lbA, ubA=ubA)
         result = self._qp.solve()
-        solved = result.solved and bool(np.all(np.isfinite(result.x)))
+        solved = result.solved and bool(np.isfinite(result.x).all())
         plan = u_ref + result.x.reshape(n, 2) if solved else u_ref.copy()
         self.last_prediction = Prediction(
-            xi0=xi0, Phi=Phi, Gamma=Gamma, u_ref=u_ref, plan=plan, solved=solved, reference=ref
+            xi0=xi0,
+            Phi=Phi,
+            Gamma=Gamma,
+            u_ref=u_ref,
+            plan=plan,
+            solved=solved,
+            reference=ref,
         )
         return plan, u_ref, solved, result.status
 
     def _reference_inputs(self, ref: ReferenceHorizon) -> np.ndarray:
         """Reference inputs ``[v_r, delta_r]`` over the horizon, shape (N, 2)."""
         n = self.config.horizon
-        return np.column_stack([ref.v[:n], ref.delta[:n]])
+        u_ref = np.empty((n, 2))
+        u_ref[:, 0] = ref.v[:n]
+        u_ref[:, 1] = ref.delta[:n]
+        return u_ref
 
     def _prediction(
         self, observation: Observation, ref: ReferenceHorizon, u_ref: np.ndarray

@@ -13,6 +13,10 @@ car's motion when ``U`` is applied (so ``dU_label = U - U_p``). The residual
 MPC chooses ``dU`` so that the kinematic model driven by the predicted ``U_p``
 follows the reference, around the LMPC's own linearisation.
 
+The default's residual Hessian contains the LMPC's condensed prediction, so it
+changes at every step and is factorised with LAPACK rather than by the QP
+solver (see :class:`rkmpc.control.qp.DaqpQP`).
+
 ``rkmpc-paper``: the literal reading. The lifted state is the pose in the car's
 local frame, ``z = [x, y, theta, psi(x, y, theta)]``, driven by the control
 residual ``dU``; the residual MPC tracks the reference in the local frame with
@@ -62,6 +66,11 @@ def residual_features(observation: Observation) -> np.ndarray:
     return np.array([observation.speed, observation.yaw_rate, observation.steer_angle])
 
 
+def _all_finite(values: np.ndarray) -> bool:
+    """Whether every entry of a small float array is finite."""
+    return bool(np.isfinite(values).all())
+
+
 @dataclass(frozen=True)
 class ResidualMPCConfig:
     """Weights and bounds of the residual MPC (paper Eq. MPC2).
@@ -105,9 +114,12 @@ def reference_in_local_frame(ref: ReferenceHorizon, observation: Observation) ->
     """Reference poses ``k = 1..N`` in the car's frame (origin at the car, heading 0), shape (N, 3)."""
     c, s = math.cos(observation.yaw), math.sin(observation.yaw)
     dx, dy = ref.x[1:] - observation.x, ref.y[1:] - observation.y
-    heading = ref.theta[1:] - observation.yaw
-    heading = heading - 2.0 * math.pi * np.round(heading[0] / (2.0 * math.pi))
-    return np.column_stack([c * dx + s * dy, -s * dx + c * dy, heading])
+    local = np.empty((dx.shape[0], 3))
+    np.subtract(ref.theta[1:], observation.yaw, out=local[:, 2])
+    local[:, 2] -= 2.0 * math.pi * round(float(local[0, 2]) / (2.0 * math.pi))
+    local[:, 0] = c * dx + s * dy
+    local[:, 1] = -s * dx + c * dy
+    return local
 
 
 class _ResidualBase(Controller):
@@ -115,6 +127,8 @@ class _ResidualBase(Controller):
 
     #: Residual MPC settings used when none are given.
     default_config = ResidualMPCConfig()
+    #: Whether the residual QP's Hessian changes every step (then it is factorised with LAPACK).
+    varying_hessian = True
 
     def __init__(
         self,
@@ -132,16 +146,22 @@ class _ResidualBase(Controller):
         self.lmpc = LinearMPC(reference, vehicle, lmpc_config)
         n = self.lmpc.config.horizon
         self.horizon = n
-        self._qp = make_qp(self.config.solver, max_iterations=self.config.max_iterations)
+        self._qp = make_qp(
+            self.config.solver, max_iterations=self.config.max_iterations, factorize=self.varying_hessian
+        )
         self._d_max = np.tile([self.config.max_speed_correction, self.config.max_steer_correction], n)
+        self._neg_d_max = -self._d_max
         self._guard = CommandGuard(vehicle, self.lmpc.config.dt, n)
         self._u_min = np.tile(self._guard.u_min, n)
         self._u_max = np.tile(self._guard.u_max, n)
         w = [self.config.position_weight, self.config.position_weight, self.config.heading_weight]
         self._q = np.tile(w, n)
         self._r = np.tile([self.config.speed_weight, self.config.steer_weight], n)
+        self._R = np.diag(self._r)
         #: Last correction applied (first step), shape (2,).
         self.last_correction = np.zeros(2)
+        # The Hessian the residual QP holds (a fixed one need not be passed again).
+        self._qp_hessian: np.ndarray | None = None
         self._precompute()
 
     def _precompute(self) -> None:
@@ -161,23 +181,25 @@ class _ResidualBase(Controller):
                 "fallback",
                 self.lmpc.info.message,
             )
-        plan = pred.plan.ravel()
+        plan = pred.plan.reshape(-1)
         try:
             H, f = self._residual_qp(observation, pred, plan)
         except FloatingPointError as exc:  # non-finite features: keep the baseline
             return self._apply(np.array([base.speed, base.steer]), np.zeros(2)), "fallback", str(exc)
-        lb = np.maximum(-self._d_max, self._u_min - plan)
-        ub = np.minimum(self._d_max, self._u_max - plan)
+        lb = self._u_min - plan
+        np.maximum(lb, self._neg_d_max, out=lb)
+        ub = self._u_max - plan
+        np.minimum(ub, self._d_max, out=ub)
         # As the LMPC: never faster than the reference speed profile.
-        ub[0::2] = np.minimum(ub[0::2], pred.u_ref[:, 0] - pred.plan[:, 0])
-        lb = np.minimum(lb, ub)
-        empty = np.zeros((0, plan.size))
+        np.minimum(ub[0::2], pred.u_ref[:, 0] - pred.plan[:, 0], out=ub[0::2])
+        np.minimum(lb, ub, out=lb)
         if not self._qp.is_setup:
-            self._qp.setup(H, f, lb, ub, empty, np.zeros(0), np.zeros(0))
+            self._qp.setup(H, f, lb, ub, np.zeros((0, plan.size)), np.zeros(0), np.zeros(0))
         else:
-            self._qp.update(H=H, f=f, lb=lb, ub=ub)
+            self._qp.update(H=None if H is self._qp_hessian else H, f=f, lb=lb, ub=ub)
+        self._qp_hessian = H
         result = self._qp.solve()
-        if not result.solved or not np.all(np.isfinite(result.x)):
+        if not result.solved or not _all_finite(result.x):
             return self._apply(plan[:2], np.zeros(2)), "fallback", f"residual QP failed: {result.status}"
         return self._apply(plan[:2], result.x[:2]), "ok", ""
 
@@ -221,15 +243,18 @@ class ResidualKoopmanMPC(_ResidualBase):
         self, observation: Observation, pred: Prediction, plan: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
         x = residual_features(observation)
-        if not np.all(np.isfinite(x)):
+        if not _all_finite(x):
             raise FloatingPointError("rkmpc needs measured speed, yaw rate and wheel angle")
         z0 = self.model.lift(x)
         # Kinematic deviations when the car's effective input is U_p(U_lmpc + dU).
-        GM = pred.Gamma @ self._Mu
         e0 = pred.Phi @ pred.xi0 + pred.Gamma @ (self._Mz @ z0 + self._Mu @ plan - pred.u_ref.ravel())
-        GtQ = GM.T * self._q
-        H = 2.0 * (GtQ @ GM + np.diag(self._r))
-        f = 2.0 * (GtQ @ e0)
+        GM = pred.Gamma @ self._Mu
+        GtQ = (self._q[:, None] * GM).T
+        H = GtQ @ GM
+        H += self._R
+        H *= 2.0
+        f = GtQ @ e0
+        f *= 2.0
         return H, f
 
 
@@ -254,6 +279,7 @@ class PaperResidualKoopmanMPC(_ResidualBase):
     name = "rkmpc-paper"
     #: The literal model mispredicts the pose, so only heavily weighted corrections keep it on track.
     default_config = ResidualMPCConfig(heading_weight=5.0, speed_weight=5.0, steer_weight=5000.0)
+    varying_hessian = False
 
     def _precompute(self) -> None:
         m = self.model
@@ -266,6 +292,8 @@ class PaperResidualKoopmanMPC(_ResidualBase):
     def _residual_qp(
         self, observation: Observation, pred: Prediction, plan: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
-        local = reference_in_local_frame(pred.reference, observation)
-        f = 2.0 * (self._MtQ @ (self._free - local.ravel()))
+        local = reference_in_local_frame(pred.reference, observation).reshape(-1)
+        np.subtract(self._free, local, out=local)
+        f = self._MtQ @ local
+        f *= 2.0
         return self._H, f
