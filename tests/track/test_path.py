@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -157,3 +159,98 @@ def test_hinted_projection_stays_on_its_straight(stadium: Path) -> None:
 def test_explicit_window_must_be_positive(stadium: Path) -> None:
     with pytest.raises(ParameterError):
         stadium.project(0.0, 0.0, s_hint=0.0, window=0.0)
+
+
+# ---------------------------------------------------------------- fast path == plain implementation
+def plain_project(
+    path: Path, x: float, y: float, s_hint: float, window: float | None = None
+) -> tuple[float, ...]:
+    """The straightforward hinted projection (the implementation before the fast path)."""
+    n = path._n_tab
+    ds = path._tab_ds
+    w = path.default_window if window is None else window
+    half = max(math.ceil(w / ds), 2)
+    centre = round((s_hint % path.length) / ds) % n
+    best = centre
+    for _ in range(8):
+        lo = centre - half
+        hi = centre + half + 1
+        idx = np.arange(lo, hi) % n
+        ddx = path._tab_x[idx] - x
+        ddy = path._tab_y[idx] - y
+        j = int(np.argmin(ddx * ddx + ddy * ddy))
+        best = (lo + j) % n
+        if 0 < j < hi - lo - 1 or 2 * half + 1 >= n:
+            break
+        centre = best
+    i = best
+    xi, yi, th, k = path._lx[i], path._ly[i], path._lh[i], path._lk[i]
+    c, sn = math.cos(th), math.sin(th)
+    dx, dy = x - xi, y - yi
+    along = dx * c + dy * sn
+    lat = dy * c - dx * sn
+    d = min(max(along / max(1.0 - k * lat, 0.1), -ds), ds)
+    for final in (False, True):
+        th_d = th + k * d
+        half_k = 0.5 * k * d * d
+        px = xi + c * d - half_k * sn
+        py = yi + sn * d + half_k * c
+        cd, sd = math.cos(th_d), math.sin(th_d)
+        lat = (y - py) * cd - (x - px) * sd
+        if final:
+            break
+        along = (x - px) * cd + (y - py) * sd
+        d = min(max(d + along / max(1.0 - k * lat, 0.1), -ds), ds)
+    s = i * ds + d
+    if s < 0.0:
+        s += path.length
+    elif s >= path.length:
+        s -= path.length
+    if s >= path.length:
+        s = 0.0
+    return s, lat, float(wrap_angle(th_d))
+
+
+def random_queries(path: Path, rng: np.random.Generator, n: int) -> list[tuple[float, float, float]]:
+    """Points near the path with hints near their arc length, many across s = 0, some far off."""
+    length = path.length
+    s = np.concatenate([rng.uniform(0.0, length, n), rng.uniform(-1.0, 1.0, n // 4) % length])
+    lat = rng.uniform(-0.5, 0.5, s.size)
+    lat[::10] *= 20.0  # far from the path: the window may have to move
+    pts = offset_points(path, s, lat)
+    hints = s + rng.uniform(-1.5, 1.5, s.size) + length * rng.integers(-2, 3, s.size)
+    return [(float(px), float(py), float(h)) for (px, py), h in zip(pts, hints, strict=True)]
+
+
+def assert_projection_matches(
+    path: Path, queries: list[tuple[float, float, float]], window: float | None
+) -> None:
+    for x, y, hint in queries:
+        p = path.project(x, y, s_hint=hint, window=window)
+        s, lat, heading = plain_project(path, x, y, hint, window)
+        np.testing.assert_allclose([p.s, p.lateral, p.heading], [s, lat, heading], rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize("window", [None, 0.3, 1e3])
+def test_hinted_projection_matches_plain(stadium: Path, window: float | None) -> None:
+    assert_projection_matches(stadium, random_queries(stadium, np.random.default_rng(3), 400), window)
+
+
+def test_hinted_projection_matches_plain_on_a_real_track(tracks_dir) -> None:
+    from rkmpc.track import load_track
+
+    path = load_track(tracks_dir / "centerlines" / "Monza.csv").centerline
+    assert_projection_matches(path, random_queries(path, np.random.default_rng(4), 1000), None)
+
+
+def test_projection_survives_pickling_and_threads(stadium: Path) -> None:
+    import pickle
+    from concurrent.futures import ThreadPoolExecutor
+
+    queries = random_queries(stadium, np.random.default_rng(5), 200)
+    copy = pickle.loads(pickle.dumps(stadium))
+    expected = [plain_project(stadium, *q) for q in queries]
+    with ThreadPoolExecutor(4) as pool:
+        got = list(pool.map(lambda q: copy.project(q[0], q[1], s_hint=q[2]), queries * 3))
+    for p, e in zip(got, expected * 3, strict=True):
+        np.testing.assert_allclose([p.s, p.lateral, p.heading], e, rtol=1e-12, atol=1e-12)

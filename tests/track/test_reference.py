@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -81,3 +83,103 @@ def test_bad_arguments(reference: Reference) -> None:
         Reference(other, reference.profile, WHEELBASE)
     with pytest.raises(ParameterError):
         reference.horizon(0.0, 10, 0.0)
+
+
+# ---------------------------------------------------------------- fast path == plain implementation
+def plain_horizon(ref: Reference, s0: float, n_steps: int, dt: float) -> np.ndarray:
+    """The straightforward horizon (the code before the fast path), rows s, x, y, theta, v, delta."""
+    length = ref.path.length
+    lap_time = ref.lap_time
+    s0w = s0 % length
+    t0 = float(np.interp(s0w, ref._s_prof, ref._t_prof))
+    t = t0 + dt * np.arange(n_steps + 1)
+    laps = np.floor(t / lap_time)
+    s_lap = np.interp(t - laps * lap_time, ref._t_prof, ref._s_prof)
+    s_lap[0] = s0w
+    u = s_lap / ref._ds
+    idx = np.minimum(u.astype(np.intp), ref._n_tab - 1)
+    frac = (u - idx)[:, None]
+    tab = ref._table
+    vals = tab[idx] * (1.0 - frac) + tab[idx + 1] * frac
+    theta = vals[:, 2] + 2 * np.pi * ref.path.winding_number * laps
+    th0 = theta[0]
+    wrapped0 = math.pi - math.fmod(math.pi - th0, 2 * math.pi)
+    if wrapped0 <= -math.pi:
+        wrapped0 += 2 * math.pi
+    elif wrapped0 > math.pi:
+        wrapped0 -= 2 * math.pi
+    theta = theta + (wrapped0 - th0)
+    s_out = np.where(s_lap >= length, s_lap - length, s_lap)
+    return np.array([s_out, vals[:, 0], vals[:, 1], theta, vals[:, 3], vals[:, 4]])
+
+
+def horizon_rows(ref: Reference, s0: float, n_steps: int, dt: float) -> np.ndarray:
+    h = ref.horizon(s0, n_steps, dt)
+    return np.array([h.s, h.x, h.y, h.theta, h.v, h.delta])
+
+
+def assert_same(fast: np.ndarray, plain: np.ndarray) -> None:
+    """Equal to floating-point noise: 1e-12 relative to each row's scale."""
+    for a, b in zip(fast, plain, strict=True):
+        scale = max(1.0, float(np.max(np.abs(b))))
+        np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-12 * scale)
+
+
+def start_points(ref: Reference, rng: np.random.Generator) -> np.ndarray:
+    length = ref.path.length
+    return np.concatenate(
+        [
+            rng.uniform(0.0, length, 300),
+            length - rng.uniform(0.0, 3.0, 50),  # horizons across the start line
+            rng.uniform(-3.0, 3.0, 30),  # negative starts wrap
+            rng.uniform(0.0, length, 10) + length * rng.integers(-3, 4, 10),
+            [0.0, length, -0.0, 1e-300, -1e-300, length - 1e-12, np.nextafter(length, 0.0)],
+        ]
+    )
+
+
+@pytest.mark.parametrize("n_steps, dt", [(30, 0.05), (0, 0.05), (7, 0.2), (30, 0.1)])
+def test_horizon_fast_path_matches_plain(reference: Reference, n_steps: int, dt: float) -> None:
+    rng = np.random.default_rng(n_steps)
+    for s0 in start_points(reference, rng):
+        assert_same(horizon_rows(reference, s0, n_steps, dt), plain_horizon(reference, s0, n_steps, dt))
+    # A horizon longer than a lap, and numpy scalars as input.
+    assert_same(horizon_rows(reference, np.float64(3.0), 400, 0.1), plain_horizon(reference, 3.0, 400, 0.1))
+
+
+def test_horizon_fast_path_matches_plain_on_a_long_track(shared_tracks) -> None:
+    from rkmpc.scenario import load_scenario
+
+    ref = load_scenario(str(shared_tracks / "centerlines" / "Monza.csv")).reference
+    rng = np.random.default_rng(1)
+    for s0 in start_points(ref, rng):
+        assert_same(horizon_rows(ref, s0, 30, 0.05), plain_horizon(ref, s0, 30, 0.05))
+
+
+def test_horizon_results_are_fresh_arrays(reference: Reference) -> None:
+    a = reference.horizon(10.0, 30, 0.05)
+    kept = a.as_array().copy()
+    reference.horizon(50.0, 30, 0.05)
+    np.testing.assert_array_equal(a.as_array(), kept)
+    assert a == a and isinstance(a, type(reference.horizon(1.0, 3, 0.05)))
+
+
+def test_reference_survives_pickling(reference: Reference) -> None:
+    import pickle
+
+    reference.horizon(10.0, 30, 0.05)
+    copy = pickle.loads(pickle.dumps(reference))
+    assert_same(horizon_rows(copy, 10.0, 30, 0.05), horizon_rows(reference, 10.0, 30, 0.05))
+    p = copy.project(1.0, 2.0, s_hint=0.5)
+    assert p == reference.project(1.0, 2.0, s_hint=0.5)
+
+
+def test_horizon_from_threads(reference: Reference) -> None:
+    from concurrent.futures import ThreadPoolExecutor
+
+    starts = np.linspace(0.0, 2 * reference.path.length, 400)
+    expected = [plain_horizon(reference, s0, 30, 0.05) for s0 in starts]
+    with ThreadPoolExecutor(4) as pool:
+        got = list(pool.map(lambda s0: horizon_rows(reference, s0, 30, 0.05), starts))
+    for a, b in zip(got, expected, strict=True):
+        assert_same(a, b)

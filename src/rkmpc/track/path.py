@@ -9,7 +9,9 @@ curvature supports fast, allocation-light projection of points onto the path.
 from __future__ import annotations
 
 import math
+import threading
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -37,6 +39,16 @@ _TABLE_MIN = 2000
 _TABLE_MAX = 20000
 # How often a hinted search may move its window when the nearest point lies on its edge.
 _MAX_RECENTRE = 8
+
+# Local aliases for the scalar hot path.
+_PI = math.pi
+_cos = math.cos
+_sin = math.sin
+_fmod = math.fmod
+_subtract = np.subtract
+_multiply = np.multiply
+_add = np.add
+_new_object = object.__new__
 
 
 def wrap_angle(angle: ArrayLike) -> FloatArray | float:
@@ -217,6 +229,22 @@ class Path:
         self._pad_x = np.concatenate([self._tab_x[-pad:], self._tab_x, self._tab_x[:pad]])
         self._pad_y = np.concatenate([self._tab_y[-pad:], self._tab_y, self._tab_y[:pad]])
         self._tree: cKDTree | None = None
+        # Hot-path constants: padded table as one (2, n + 2 pad) array (rows x, y), the
+        # search half-width of the default window, and per table point the tuple
+        # (x, y, heading, curvature, cos(heading), sin(heading)) for the refinement.
+        self._pad_xy = np.ascontiguousarray(np.vstack([self._pad_x, self._pad_y]))
+        self._default_half = max(math.ceil(self.default_window / self._tab_ds), 2)
+        self._lrow = [
+            (xi, yi, th, k, math.cos(th), math.sin(th))
+            for xi, yi, th, k in zip(self._lx, self._ly, self._lh, self._lk, strict=True)
+        ]
+        # Scratch buffers of the hinted search, per thread (see _search_buffers).
+        self._buffers: dict[tuple[int, int], tuple[Any, ...]] = {}
+
+    def __getstate__(self) -> dict[str, Any]:
+        state = self.__dict__.copy()
+        state["_buffers"] = {}  # scratch space: neither pickled nor shared between copies
+        return state
 
     # ------------------------------------------------------------------ construction
     @classmethod
@@ -397,53 +425,86 @@ class Path:
     # ------------------------------------------------------------------ projection
     def _refine(self, i: int, x: float, y: float) -> Projection:
         """Refine a projection starting from dense-table point ``i`` (scalar hot path)."""
-        xi = self._lx[i]
-        yi = self._ly[i]
-        th = self._lh[i]
-        k = self._lk[i]
+        xi, yi, th, k, c, sn = self._lrow[i]
         ds = self._tab_ds
-        c = math.cos(th)
-        sn = math.sin(th)
         dx = x - xi
         dy = y - yi
         along = dx * c + dy * sn
         lat = dy * c - dx * sn
-        d = along / max(1.0 - k * lat, 0.1)
-        d = min(max(d, -ds), ds)
+        den = 1.0 - k * lat
+        if 0.1 > den:
+            den = 0.1
+        d = along / den
+        if -ds > d:
+            d = -ds
+        if ds < d:
+            d = ds
         # Second step on the local second-order (clothoid-free) expansion.
         th_d = th + k * d
         half = 0.5 * k * d * d
         px = xi + c * d - half * sn
         py = yi + sn * d + half * c
-        cd = math.cos(th_d)
-        sd = math.sin(th_d)
+        cd = _cos(th_d)
+        sd = _sin(th_d)
         ex = x - px
         ey = y - py
         along = ex * cd + ey * sd
         lat = ey * cd - ex * sd
-        d += along / max(1.0 - k * lat, 0.1)
-        d = min(max(d, -ds), ds)
+        den = 1.0 - k * lat
+        if 0.1 > den:
+            den = 0.1
+        d += along / den
+        if -ds > d:
+            d = -ds
+        if ds < d:
+            d = ds
         th_d = th + k * d
         half = 0.5 * k * d * d
         px = xi + c * d - half * sn
         py = yi + sn * d + half * c
-        cd = math.cos(th_d)
-        sd = math.sin(th_d)
+        cd = _cos(th_d)
+        sd = _sin(th_d)
         lat = (y - py) * cd - (x - px) * sd
+        length = self.length
         s = i * ds + d
         if s < 0.0:
-            s += self.length
-        elif s >= self.length:
-            s -= self.length
-        if s >= self.length:  # guards the rounding case s == length
+            s += length
+        elif s >= length:
+            s -= length
+        if s >= length:  # guards the rounding case s == length
             s = 0.0
-        return Projection(s=s, lateral=lat, heading=_wrap_scalar(th_d))
+        # Heading wrapped into (-pi, pi] (inlined _wrap_scalar).
+        w = _PI - _fmod(_PI - th_d, _TWO_PI)
+        if w <= -_PI:
+            w += _TWO_PI
+        elif w > _PI:
+            w -= _TWO_PI
+        # Projection(s, lat, w) without the frozen dataclass's per-field __setattr__.
+        proj = _new_object(Projection)
+        attrs = proj.__dict__
+        attrs["s"] = s
+        attrs["lateral"] = lat
+        attrs["heading"] = w
+        return proj
 
     def _nearest_global(self, xy: FloatArray) -> NDArray[np.intp]:
         if self._tree is None:
             self._tree = cKDTree(self._tab_xy)
         _, idx = self._tree.query(xy)
         return np.asarray(idx, dtype=np.intp)
+
+    def _search_buffers(self, half: int) -> tuple[Any, ...]:
+        """Scratch arrays of a hinted search of half-width ``half``, owned by the calling thread."""
+        key = (threading.get_ident(), half)
+        bufs = self._buffers.get(key)
+        if bufs is None:
+            m = 2 * half + 1
+            q = np.empty((2, 1))
+            diff = np.empty((2, m))
+            dist = np.empty(m)
+            bufs = (q, diff, diff[0], diff[1], dist)
+            self._buffers[key] = bufs
+        return bufs
 
     def _nearest_hinted(self, x: float, y: float, s_hint: float, window: float) -> int:
         n = self._n_tab
@@ -452,17 +513,15 @@ class Path:
         half = max(half, 2)
         centre = round((s_hint % self.length) / ds) % n
         pad = self._pad
+        if half + 1 <= pad:
+            return self._search_padded(x, y, centre, half)
         best = centre
         for _ in range(_MAX_RECENTRE):
             lo = centre - half
             hi = centre + half + 1
-            if half + 1 <= pad:
-                xs = self._pad_x[lo + pad : hi + pad]
-                ys = self._pad_y[lo + pad : hi + pad]
-            else:
-                idx = np.arange(lo, hi) % n
-                xs = self._tab_x[idx]
-                ys = self._tab_y[idx]
+            idx = np.arange(lo, hi) % n
+            xs = self._tab_x[idx]
+            ys = self._tab_y[idx]
             ddx = xs - x
             ddy = ys - y
             j = int(np.argmin(ddx * ddx + ddy * ddy))
@@ -471,6 +530,45 @@ class Path:
                 break
             centre = best
         return best
+
+    def _search_padded(self, x: float, y: float, centre: int, half: int) -> int:
+        """Hinted nearest-table-point search in the padded table (window within the padding).
+
+        The same arithmetic as the plain search (``(x_i - x)**2 + (y_i - y)**2``,
+        first minimum), in preallocated buffers.
+        """
+        key = (threading.get_ident(), half)
+        bufs = self._buffers.get(key)
+        if bufs is None:
+            bufs = self._search_buffers(half)
+        q, diff, dx2, dy2, dist = bufs
+        q[0, 0] = x
+        q[1, 0] = y
+        n = self._n_tab
+        m = 2 * half + 1
+        last = m - 1
+        first = self._pad - half
+        pad_xy = self._pad_xy
+        best = centre
+        for _ in range(_MAX_RECENTRE):
+            a = centre + first
+            _subtract(pad_xy[:, a : a + m], q, out=diff)
+            _multiply(diff, diff, out=diff)
+            _add(dx2, dy2, out=dist)
+            j = int(dist.argmin())
+            best = (centre - half + j) % n
+            if 0 < j < last or m >= n:
+                break
+            centre = best
+        return best
+
+    def _project_hinted(self, x: float, y: float, s_hint: float) -> Projection:
+        """Hinted projection with the default window; no argument checks (hot path)."""
+        ds = self._tab_ds
+        n = self._n_tab
+        centre = round((s_hint % self.length) / ds) % n
+        i = self._search_padded(x, y, centre, self._default_half)
+        return self._refine(i, x, y)
 
     def project(
         self,
@@ -508,8 +606,10 @@ class Path:
         y = float(y)
         if s_hint is None:
             i = int(self._nearest_global(np.array([x, y]))[()])
+        elif window is None:
+            return self._project_hinted(x, y, float(s_hint))
         else:
-            w = self.default_window if window is None else float(window)
+            w = float(window)
             if not (w > 0.0):
                 raise ParameterError(f"Path.project: window must be > 0, got {window!r}")
             i = self._nearest_hinted(x, y, float(s_hint), w)

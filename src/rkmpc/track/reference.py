@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import math
+import threading
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -21,6 +23,15 @@ _TWO_PI = 2.0 * math.pi
 _TABLE_SPACING = 0.02
 _TABLE_MIN = 2000
 _TABLE_MAX = 20000
+
+_interp = np.interp
+
+_new_object = object.__new__
+_add = np.add
+_subtract = np.subtract
+_multiply = np.multiply
+_divide = np.divide
+_copyto = np.copyto
 
 
 @dataclass(frozen=True)
@@ -53,6 +64,11 @@ class ReferenceHorizon:
     def as_array(self) -> FloatArray:
         """Stack the reference as an ``(n + 1, 5)`` array with columns ``x, y, theta, v, delta``."""
         return np.column_stack([self.x, self.y, self.theta, self.v, self.delta])
+
+
+def _pair_rows(table: FloatArray) -> FloatArray:
+    """Rows ``i`` and ``i + 1`` of ``table`` as column ``i``, shape ``(2 * ncols, len(table) - 1)``."""
+    return np.ascontiguousarray(np.vstack([table[:-1].T, table[1:].T]))
 
 
 class Reference:
@@ -115,6 +131,58 @@ class Reference:
         self._t_prof = np.concatenate([[0.0], np.cumsum(dt)])
         self.lap_time = float(self._t_prof[-1])
 
+        # Hot-path constants of horizon().  Profile grid as lists, for the scalar
+        # interpolation t(s0), and its mean spacing for the first index guess.
+        self._sp_list: list[float] = s_prof.tolist()
+        self._tp_list: list[float] = self._t_prof.tolist()
+        self._sp_inv = (s_prof.size - 1) / length
+        # Columns (table[i], table[i + 1]) stacked, shape (10, n_tab), so that one
+        # take() fetches both ends of every interval of the horizon, row by row.
+        self._table_pairs = _pair_rows(self._table)
+        # A horizon whose last time is before _t_fast neither crosses the start line
+        # nor comes within two table steps of s = L: no lap arithmetic, no clipping.
+        j_fast = int(np.searchsorted(s_prof, length - 2.0 * self._ds, side="right")) - 1
+        self._t_fast = float(self._t_prof[max(j_fast, 0)])
+        # Scratch buffers per (thread, n_steps, dt), see _horizon_buffers.
+        self._buffers: dict[tuple[int, int, float], tuple[Any, ...]] = {}
+
+    def __getstate__(self) -> dict[str, Any]:
+        state = self.__dict__.copy()
+        state["_buffers"] = {}  # scratch space: neither pickled nor shared between copies
+        state.pop("_table_pairs")  # derived from _table, rebuilt on unpickling
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        self._table_pairs = _pair_rows(self._table)
+
+    def _horizon_buffers(self, key: tuple[int, int, float]) -> tuple[Any, ...]:
+        """Scratch arrays of :meth:`horizon` for ``key = (thread, n_steps, dt)``."""
+        n1 = key[1] + 1
+        offsets = key[2] * np.arange(n1)
+        t = np.empty(n1)
+        u = np.empty(n1)
+        idx = np.empty(n1, dtype=np.intp)
+        weights = np.empty((2, n1))
+        pairs = np.empty((10, n1))
+        pairs3 = pairs.reshape(2, 5, n1)
+        bufs = (
+            offsets,
+            float(offsets[-1]),
+            t,
+            u,
+            idx,
+            weights[0],
+            weights[1],
+            weights[:, None, :],
+            pairs,
+            pairs3,
+            pairs3[0],
+            pairs3[1],
+        )
+        self._buffers[key] = bufs
+        return bufs
+
     def horizon(self, s0: float, n_steps: int, dt: float) -> ReferenceHorizon:
         """Reference over ``n_steps`` steps of ``dt`` starting at arc length ``s0``.
 
@@ -140,9 +208,68 @@ class Reference:
         if n_steps < 0 or not dt > 0.0:
             raise ParameterError(f"Reference.horizon: need n_steps >= 0 and dt > 0, got {n_steps!r}, {dt!r}")
         length = self._length
-        lap_time = self.lap_time
         s0w = s0 % length
-        t0 = float(np.interp(s0w, self._s_prof, self._t_prof))
+        key = (threading.get_ident(), n_steps, dt)
+        bufs = self._buffers.get(key)
+        if bufs is None:
+            bufs = self._horizon_buffers(key)
+        (offsets, last_offset, t, u, idx, w0, w1, w3, pairs, pairs3, lower, upper) = bufs
+        # t0 = np.interp(s0w, s_prof, t_prof), as the scalar case of numpy's kernel.
+        x = float(s0w)
+        sp = self._sp_list
+        tp = self._tp_list
+        last = len(sp) - 1
+        j = int(x * self._sp_inv)
+        if j > last:
+            j = last
+        elif j < 0:
+            j = 0
+        while j > 0 and sp[j] > x:
+            j -= 1
+        while j < last and sp[j + 1] <= x:
+            j += 1
+        if x < sp[0]:
+            t0 = tp[0]
+        elif j == last or sp[j] == x:
+            t0 = tp[j]
+        else:
+            t0 = (tp[j + 1] - tp[j]) / (sp[j + 1] - sp[j]) * (x - sp[j]) + tp[j]
+        if not (t0 + last_offset < self._t_fast and x == x):
+            return self._horizon_general(s0w, t0, n_steps, dt)
+        # No lap crossing: laps == 0, s_lap < length - 2 ds, no index clipping.
+        _add(offsets, t0, out=t)
+        s_lap = _interp(t, self._t_prof, self._s_prof)
+        s_lap[0] = s0w
+        _divide(s_lap, self._ds, out=u)
+        _copyto(idx, u, casting="unsafe")
+        _subtract(u, idx, out=w1)
+        _subtract(1.0, w1, out=w0)
+        self._table_pairs.take(idx, axis=1, out=pairs)
+        _multiply(pairs3, w3, out=pairs3)
+        vals = _add(lower, upper)  # rows x, y, theta, v, delta
+        th0 = float(vals[2, 0])
+        # Shift theta so that theta[0] lies in (-pi, pi].
+        wrapped0 = math.pi - math.fmod(math.pi - th0, _TWO_PI)
+        if wrapped0 <= -math.pi:
+            wrapped0 += _TWO_PI
+        elif wrapped0 > math.pi:
+            wrapped0 -= _TWO_PI
+        theta = vals[2] + (wrapped0 - th0)
+        # ReferenceHorizon(...) without the frozen dataclass's per-field __setattr__.
+        out = _new_object(ReferenceHorizon)
+        attrs = out.__dict__
+        attrs["s"] = s_lap
+        attrs["x"] = vals[0]
+        attrs["y"] = vals[1]
+        attrs["theta"] = theta
+        attrs["v"] = vals[3]
+        attrs["delta"] = vals[4]
+        return out
+
+    def _horizon_general(self, s0w: float, t0: float, n_steps: int, dt: float) -> ReferenceHorizon:
+        """:meth:`horizon` for any start, lap crossings included (plain vectorised code)."""
+        length = self._length
+        lap_time = self.lap_time
         t = t0 + dt * np.arange(n_steps + 1)
         laps = np.floor(t / lap_time)
         s_lap = np.interp(t - laps * lap_time, self._t_prof, self._s_prof)
@@ -174,4 +301,6 @@ class Reference:
 
     def project(self, x: float, y: float, s_hint: float | None = None) -> Projection:
         """Project a point onto the reference path (see :meth:`Path.project`)."""
-        return self.path.project(x, y, s_hint=s_hint)
+        if s_hint is None:
+            return self.path.project(x, y)
+        return self.path._project_hinted(float(x), float(y), float(s_hint))
