@@ -3,7 +3,7 @@ PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 
-.PHONY: demo test lint bench tracks-table learning-table study-tracks study-data results clean
+.PHONY: demo test lint bench tracks-table learning-table study-tracks study-data faults results clean
 
 # PyTorch first and pinned exactly: a looser pin pulls a multi-gigabyte CUDA build.
 $(BIN)/python:
@@ -30,7 +30,7 @@ test: $(VENV)/.installed-test
 	$(BIN)/python -m pytest
 
 bench: $(VENV)/.installed
-	$(BIN)/python benchmarks/bench_step.py --out runs/bench/step_times.json $(if $(wildcard runs/learning/kmpc_50000_0.rkm),--kmpc-model runs/learning/kmpc_50000_0.rkm)
+	$(BIN)/python benchmarks/bench_step.py --out runs/bench/step_times.json
 
 tracks-table: $(VENV)/.installed
 	$(BIN)/python benchmarks/tracks_table.py --out runs/tracks
@@ -46,10 +46,15 @@ study-tracks: $(VENV)/.installed
 study-data: $(VENV)/.installed
 	$(BIN)/rkmpc study data --track builtin --out runs/study-data
 
-# docs/results.md from a full run: demo, both studies and the step-time benchmark.
-results: demo study-tracks study-data bench
-	$(BIN)/python benchmarks/results_doc.py --demo runs/demo --tracks runs/study-tracks \
-		--data runs/study-data --bench runs/bench/step_times.json --out docs/results.md
+# What each fault does to every controller on the built-in track (models come from the cache).
+FAULTS := noise delay friction heavy
+faults: $(VENV)/.installed
+	for f in $(FAULTS); do $(BIN)/rkmpc compare --track builtin --fault $$f --out runs/faults/$$f || exit 1; done
+
+# docs/results.md from a full run: demo, faults, both studies and the step-time benchmark.
+results: demo faults study-tracks study-data bench
+	$(BIN)/python benchmarks/results_doc.py --demo runs/demo --faults runs/faults --tracks runs/study-tracks \
+		--data runs/study-data --bench runs/bench/step_times.json --notes docs/results-notes.md --out docs/results.md
 
 clean:
 	rm -rf runs .pytest_cache .mypy_cache .ruff_cache

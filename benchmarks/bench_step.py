@@ -23,11 +23,8 @@ import numpy as np
 
 from rkmpc.control.lmpc import LMPCConfig
 from rkmpc.control.nmpc import NMPCConfig
+from rkmpc.experiments.learned import TrackStudy, prepare_controllers
 from rkmpc.experiments.runner import RunSpec, run_controller, versions
-from rkmpc.learning.collect import collect
-from rkmpc.learning.identification import identify
-from rkmpc.learning.koopman import KoopmanModel
-from rkmpc.learning.pipeline import TrainConfig, default_model_options, train_model
 from rkmpc.scenario import Scenario, load_scenario
 from rkmpc.sim.log import write_json_atomic
 
@@ -46,18 +43,15 @@ CASES = (
 
 
 def learned_cases(scenario: Scenario, kmpc_model: Path | None) -> list[tuple[str, str, dict[str, Any]]]:
-    """Train the learned controllers on two LMPC laps of the track (as the paper does)."""
-    data = collect(scenario, laps=2)
-    wheelbase = scenario.vehicle.wheelbase
-    cases: list[tuple[str, str, dict[str, Any]]] = [
-        ("lmpc-id", "lmpc-id", {"model": identify(data, wheelbase)})
-    ]
-    for name, kind in (("rkmpc", "residual"), ("rkmpc-paper", "paper")):
-        model, _ = train_model(data, wheelbase, TrainConfig(kind=kind, model=default_model_options(kind)))
-        cases.append((name, name, {"model": model}))
-    if kmpc_model is not None:
-        cases.append(("kmpc", "kmpc", {"model": KoopmanModel.load(kmpc_model)}))
-    return cases
+    """Learn as ``rkmpc compare`` does: two LMPC laps of the track, models from the cache when there."""
+    names = ("lmpc-id", "rkmpc", "rkmpc-paper", "kmpc")
+    study = TrackStudy(
+        track=scenario.track.source or scenario.track.name,
+        controllers=names,
+        kmpc_model=None if kmpc_model is None else str(kmpc_model),
+    )
+    options, _ = prepare_controllers(scenario, study)
+    return [(name, name, options[name]) for name in names]
 
 
 def main() -> None:
@@ -66,7 +60,12 @@ def main() -> None:
     parser.add_argument("--track", default=str(SHARED_MONZA) if SHARED_MONZA.exists() else "builtin")
     parser.add_argument("--out", type=Path, default=Path("runs/bench/step_times.json"))
     parser.add_argument("--no-learned", action="store_true", help="skip the controllers that need training")
-    parser.add_argument("--kmpc-model", type=Path, default=None, help="a trained koopman model, to time KMPC")
+    parser.add_argument(
+        "--kmpc-model",
+        type=Path,
+        default=None,
+        help="a trained koopman model for KMPC (default: trained once, then cached)",
+    )
     args = parser.parse_args()
     scenario = load_scenario(args.track)
     cases = list(CASES)

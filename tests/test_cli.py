@@ -272,4 +272,5 @@ def test_study_data_writes_json_plot_and_markdown(tmp_path):
     assert main([*args, "--jobs", "1", "--out", str(out)]) == 0
     result = json.loads((out / "study_data.json").read_text())
     assert result["jobs"][0]["controller"] == "rkmpc"
+    assert result["baseline"]["controller"] == "lmpc" and result["baseline"]["metrics"]["completed"]
     assert (out / "study_data.png").stat().st_size > 10_000

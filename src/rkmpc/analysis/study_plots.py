@@ -54,6 +54,15 @@ def plot_data_study(result: Mapping[str, Any], title: str = "") -> Figure:
         ax_err.fill_between(x, lo, hi, color=style.get("color"), alpha=0.2, linewidth=0)
         rate = np.array([s["completion_rate"] for s in rows])
         ax_done.plot(x, rate, label=name.upper(), fillstyle="none", markersize=8, **style)
+    base = result.get("baseline")
+    if base and base["metrics"].get("lateral_error_mean_m") is not None:
+        ax_err.axhline(
+            base["metrics"]["lateral_error_mean_m"],
+            color="tab:orange",
+            ls=":",
+            lw=1.5,
+            label="LMPC (no data)",
+        )
     for ax in (ax_err, ax_done):
         ax.set_xscale("log")
         ax.set_xlabel("training samples (local-frame transitions)")

@@ -903,6 +903,7 @@ def study_data(
         jobs, n_jobs=n_jobs, backend=backend, address=address, on_error="record", progress=progress
     )
     wall = time.perf_counter() - t0
+    baseline = _lmpc_baseline(cfg)
     records = []
     for (c, size, seed), out in zip(keys, outcomes, strict=True):
         base = {"controller": c, "size": size, "seed": seed, "metrics": {}}
@@ -919,12 +920,22 @@ def study_data(
         "parallel": {"n_jobs": n_jobs, "backend": backend, "address": address},
         "versions": study_versions(),
         "wall_s": wall,
+        "baseline": baseline,
         "summary": aggregate_data(records),
         "jobs": records,
     }
     out_json = to_json_ready(result)
     assert isinstance(out_json, dict)
     return out_json
+
+
+def _lmpc_baseline(cfg: DataStudyConfig) -> dict[str, Any]:
+    """One lap of the LMPC on the study's track: the level the learned controllers should beat."""
+    from rkmpc.scenario import load_scenario
+
+    scenario = load_scenario(cfg.track, scale=cfg.scale, vehicle=cfg.vehicle)
+    _, metrics = run_controller(scenario, RunSpec("lmpc"))
+    return {"controller": "lmpc", "metrics": metrics}
 
 
 def data_markdown(result: Mapping[str, Any]) -> str:
@@ -951,6 +962,12 @@ def data_markdown(result: Mapping[str, Any]) -> str:
         "| " + " | ".join(head) + " |",
         "|" + "---|" * len(head),
     ]
+    base = result.get("baseline")
+    if base:
+        lines[0] += (
+            f" LMPC on the same track: lateral error {_fmt(base['metrics']['lateral_error_mean_m'])} m"
+            f" (max {_fmt(base['metrics']['lateral_error_max_m'], '.3f')} m), needs no training data."
+        )
     for s in result["summary"]:
         cells = [
             s["controller"],
