@@ -186,4 +186,12 @@ def default_model_options(kind: str, *, seed: int = 0) -> dict[str, Any]:
     """The :class:`KoopmanModel` settings used for each model kind by default."""
     if kind not in MODEL_KINDS:
         raise ParameterError(f"unknown model kind {kind!r}; known: {sorted(MODEL_KINDS)}")
-    return {"lifting": "mlp", "n_lift": 16, "hidden": (64, 64), "seed": seed, "max_seconds": 60.0}
+    # A fixed number of epochs, no wall-clock budget: the model must not depend on the machine's load.
+    return {
+        "lifting": "mlp",
+        "n_lift": 16,
+        "hidden": (64, 64),
+        "seed": seed,
+        "epochs": 100,
+        "max_seconds": None,
+    }

@@ -18,6 +18,8 @@ inference time.
 
 from __future__ import annotations
 
+import copy
+import math
 import os
 import time
 from collections.abc import Callable, Iterator
@@ -42,6 +44,12 @@ __all__ = [
 
 #: Smallest ridge used inside training, where the Gram matrix of ReLU features can be singular.
 MIN_TRAINING_RIDGE = 1e-8
+
+#: A batch whose loss exceeds this multiple of the best epoch loss so far is skipped (no step).
+SKIP_LOSS_FACTOR = 1e3
+
+#: Gradient norm clip of every optimiser step.
+MAX_GRAD_NORM = 10.0
 
 
 def set_torch_seed(seed: int) -> None:
@@ -310,23 +318,39 @@ def train_lifting(
 
         stopped = False
         epochs_run = 0
+        # Divergence guards: a batch whose least-squares fit is ill-conditioned can give a huge
+        # loss and gradient; such a batch is skipped, gradients are clipped, and the network of
+        # the epoch with the lowest mean loss is the one returned.
+        best_loss = history[-1][1] if math.isfinite(history[-1][1]) else math.inf
+        best_state = copy.deepcopy(net.state_dict())
         for epoch in range(1, epochs + 1):
             losses = []
             for idx in np.array_split(rng.permutation(n), n_batches):
                 optimiser.zero_grad(set_to_none=True)
                 loss = batch_loss(idx)
-                loss.backward()
-                optimiser.step()
-                losses.append(float(loss.detach()))
+                value = float(loss.detach())
+                if not math.isfinite(value) or value > SKIP_LOSS_FACTOR * max(best_loss, 1e-12):
+                    losses.append(math.nan)
+                else:
+                    loss.backward()
+                    torch.nn.utils.clip_grad_norm_(net.parameters(), MAX_GRAD_NORM)
+                    optimiser.step()
+                    losses.append(value)
                 if deadline is not None and time.perf_counter() > deadline:
                     stopped = True
                     break
             if losses:
-                history.append((epoch, float(np.mean(losses))))
+                kept = [v for v in losses if math.isfinite(v)]
+                mean_loss = float(np.mean(kept)) if kept else math.nan
+                history.append((epoch, mean_loss))
                 epochs_run = epoch
+                if math.isfinite(mean_loss) and mean_loss < best_loss:
+                    best_loss = mean_loss
+                    best_state = copy.deepcopy(net.state_dict())
                 if on_epoch is not None:
                     on_epoch(epoch, history[-1][1])
             if stopped:
                 break
+        net.load_state_dict(best_state)
     net.eval()
     return TrainingResult(net=net, history=history, stopped_early=stopped, epochs_run=epochs_run)
