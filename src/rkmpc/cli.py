@@ -164,6 +164,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.command == "train":
             return _cmd_train(args)
         if args.command == "study":
+            from rkmpc.experiments.parallel import limit_threads
+
+            limit_threads()  # this process trains too (the KMPC model, or jobs when --jobs 1)
             return _cmd_study_tracks(args) if args.study == "tracks" else _cmd_study_data(args)
         names = [args.controller] if args.command == "run" else _split(args.controllers)
         return _cmd_compare(args, names, single=args.command == "run")

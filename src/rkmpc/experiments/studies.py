@@ -869,8 +869,8 @@ def study_data(
     The conversion ratio is then set so that the augmentation draws
     ``round(size / n_points)`` windows: ``augmented_count`` is within
     ``n_points / 2`` of ``size`` (``target_met`` records it). The model is
-    trained with :func:`rkmpc.learning.pipeline.default_model_options` (60 s
-    cap) updated by ``model_options``, and the controller drives one lap.
+    trained with :func:`rkmpc.learning.pipeline.default_model_options` (100
+    epochs) updated by ``model_options``, and the controller drives one lap.
 
     Parameters
     ----------

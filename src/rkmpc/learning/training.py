@@ -64,14 +64,18 @@ def torch_runtime(threads: int | None = None, deterministic: bool = True) -> Ite
     Parameters
     ----------
     threads : int, optional
-        Intra-op threads; default ``min(2, os.cpu_count())``.
+        Intra-op threads; default ``min(2, os.cpu_count(), torch.get_num_threads())``, so a
+        process that limited torch to one thread (a parallel worker) keeps one: two
+        processes each spinning two threads on two cores slow small-batch training down
+        about tenfold.
     deterministic : bool
         Whether to call ``torch.use_deterministic_algorithms(True)`` for the duration.
     """
     old_threads = torch.get_num_threads()
     old_det = torch.are_deterministic_algorithms_enabled()
     old_warn = torch.is_deterministic_algorithms_warn_only_enabled()
-    torch.set_num_threads(threads if threads is not None else max(1, min(2, os.cpu_count() or 1)))
+    default = max(1, min(2, os.cpu_count() or 1, old_threads))
+    torch.set_num_threads(threads if threads is not None else default)
     if deterministic:
         torch.use_deterministic_algorithms(True, warn_only=True)
     try:
