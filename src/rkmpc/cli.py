@@ -388,7 +388,6 @@ def _cmd_study_tracks(args: argparse.Namespace) -> int:
     from rich.console import Console
 
     from rkmpc.experiments.studies import TracksStudyConfig, expand_tracks, study_tracks, tracks_markdown
-    from rkmpc.sim.log import write_json_atomic
 
     console = Console(stderr=True)
     names = _split(args.controllers)
@@ -429,11 +428,7 @@ def _cmd_study_tracks(args: argparse.Namespace) -> int:
         address=args.address,
         progress=_study_progress(console),
     )
-    out: Path = args.out
-    write_json_atomic(out / "study_tracks.json", result)
-    text = tracks_markdown(result)
-    _write_text_atomic(out / "study_tracks.md", text)
-    print(text)
+    print(_write_study(args.out, "study_tracks", result, tracks_markdown(result)))
     return 0
 
 
@@ -443,7 +438,6 @@ def _cmd_study_data(args: argparse.Namespace) -> int:
     from rkmpc.analysis.plots import save_figure
     from rkmpc.analysis.study_plots import plot_data_study
     from rkmpc.experiments.studies import DataStudyConfig, data_markdown, study_data
-    from rkmpc.sim.log import write_json_atomic
 
     console = Console(stderr=True)
     model_options = {} if args.epochs is None else {"epochs": args.epochs}
@@ -464,12 +458,19 @@ def _cmd_study_data(args: argparse.Namespace) -> int:
         progress=_study_progress(console),
     )
     out: Path = args.out
-    write_json_atomic(out / "study_data.json", result)
-    text = data_markdown(result)
-    _write_text_atomic(out / "study_data.md", text)
+    text = _write_study(out, "study_data", result, data_markdown(result))
     save_figure(plot_data_study(result, title=f"training data volume, {args.track}"), out / "study_data.png")
     print(text)
     return 0
+
+
+def _write_study(out: Path, stem: str, result: dict[str, Any], text: str) -> str:
+    """Write ``<stem>.json`` and ``<stem>.md`` of a study into ``out``; returns the Markdown."""
+    from rkmpc.sim.log import write_json_atomic
+
+    write_json_atomic(out / f"{stem}.json", result)
+    _write_text_atomic(out / f"{stem}.md", text)
+    return text
 
 
 def _write_text_atomic(path: Path, text: str) -> None:

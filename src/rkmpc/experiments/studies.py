@@ -39,24 +39,15 @@ from typing import Any
 
 import numpy as np
 
+from rkmpc.analysis.metrics import METRIC_KEYS
 from rkmpc.errors import ParameterError
 from rkmpc.experiments.learned import LEARNED_CONTROLLERS, TrackStudy, evaluate_track
 from rkmpc.experiments.parallel import BACKENDS, Job, JobOutcome, run_jobs
 from rkmpc.experiments.runner import RunSpec, run_controller, versions
 
-#: Lap metrics summarised by the studies (see :func:`rkmpc.analysis.metrics.lap_metrics`).
-TRACK_METRICS = (
-    "progress",
-    "lap_time_s",
-    "lateral_error_mean_m",
-    "lateral_error_max_m",
-    "heading_error_mean_rad",
-    "steer_rate_mean_rad_s",
-    "solve_ms_mean",
-    "solve_ms_p99",
-    "solve_ms_max",
-    "fallback_count",
-)
+#: Lap metrics summarised by the studies: the numeric ones of
+#: :data:`rkmpc.analysis.metrics.METRIC_KEYS`, in its order.
+TRACK_METRICS = tuple(k for k in METRIC_KEYS if k not in ("completed", "steps", "lateral_accel_max_m_s2"))
 
 #: Metrics whose change against the baseline is reported (not ``progress``:
 #: both laps are complete where a change is computed).
