@@ -336,3 +336,49 @@ def test_load_inconsistent_shapes(tmp_path, saved):
     _expect_error(_rewrite(saved, tmp_path / "b.npz", b_rows), "shape", "B")
     _expect_error(_rewrite(saved, tmp_path / "n.npz", sizes), "shape", "Cx")
     _expect_error(_rewrite(saved, tmp_path / "c.npz", nan), "NaN", "C")
+
+
+# ---------------------------------------------------------------- training range
+
+
+def test_lift_clips_states_into_the_training_range(data):
+    X, U, Xn = data
+    model = KoopmanModel(lifting="rbf", n_centers=16).fit(X, U, Xn)
+    np.testing.assert_array_equal(model.x_min_, np.minimum(X.min(0), Xn.min(0)))
+    np.testing.assert_array_equal(model.x_max_, np.maximum(X.max(0), Xn.max(0)))
+    inside = X[:5]
+    np.testing.assert_array_equal(model.lift(inside), model._lift(inside))  # unchanged inside the range
+    outside = np.array([model.x_max_ + np.array([3.0, 0.0]), model.x_min_ - np.array([0.0, 5.0])])
+    edge = np.array([[model.x_max_[0], model.x_max_[1]], [model.x_min_[0], model.x_min_[1]]])
+    np.testing.assert_array_equal(model.lift(outside), model._lift(edge))
+    free = KoopmanModel(lifting="rbf", n_centers=16, clip_inputs=False).fit(X, U, Xn)
+    assert not np.allclose(free.lift(outside), free._lift(edge))
+    with pytest.raises(ParameterError, match="clip_inputs"):
+        KoopmanModel(clip_inputs=1).fit(X, U, Xn)
+
+
+def test_range_is_saved_and_version_1_files_clip_nothing(tmp_path, saved):
+    model = KoopmanModel.load(saved)
+    assert np.all(np.isfinite(model.x_min_)) and np.all(model.x_min_ < model.x_max_)
+
+    def version_1(arrays, meta):
+        del arrays["x_min"], arrays["x_max"]
+        meta["format_version"] = 1
+        del meta["params"]["clip_inputs"]
+        return arrays, meta
+
+    old = KoopmanModel.load(_rewrite(saved, tmp_path / "v1.npz", version_1))
+    far = model.x_max_ + 10.0
+    np.testing.assert_array_equal(old.lift(far), old._lift(far))
+    assert not np.allclose(model.lift(far), model._lift(far))
+
+    def drop_range(arrays, meta):
+        del arrays["x_max"]
+        return arrays, meta
+
+    def bad_range(arrays, meta):
+        arrays["x_min"] = arrays["x_max"] + 1.0
+        return arrays, meta
+
+    _expect_error(_rewrite(saved, tmp_path / "r.npz", drop_range), "missing array 'x_max'", "x_max")
+    _expect_error(_rewrite(saved, tmp_path / "s.npz", bad_range), "exceeds", "x_min")

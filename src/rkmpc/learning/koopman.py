@@ -21,6 +21,14 @@ The dictionary ``psi`` is
 * ``"rbf"``: a fixed radial-basis dictionary (no training, plain EDMD);
 * ``"none"``: no dictionary, ``z = x`` (plain DMD with inputs; a linear baseline).
 
+The network and the least-squares fit only know the states they were trained on. Outside that range
+their output is an extrapolation, and on nearly constant data a wild one: on the IMS oval the car
+drives at its top speed almost everywhere, the speed feature of the residual model spans 1e-5 m/s,
+and a speed 1 cm/s below it made the model predict a 0.46 m/s, 0.009 rad residual. So the model
+records the range of its training states (``x_min_``, ``x_max_``) and, with ``clip_inputs`` (the
+default), :meth:`KoopmanModel.lift` clips a state into that range before lifting it: outside the
+data the model answers as at the nearest edge of what it has seen.
+
 A fitted model is stored as one ``.npz`` file (:meth:`KoopmanModel.save` / :meth:`KoopmanModel.load`).
 """
 
@@ -46,7 +54,9 @@ from rkmpc.sim.log import json_default
 __all__ = ["FORMAT_NAME", "FORMAT_VERSION", "LIFTING_KINDS", "KoopmanModel"]
 
 FORMAT_NAME = "rkmpc-koopman"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
+#: Format versions :meth:`KoopmanModel.load` reads (version 1 has no state range: nothing is clipped).
+READABLE_VERSIONS = (1, 2)
 LIFTING_KINDS = ("mlp", "rbf", "none")
 _MATRICES = ("A", "B", "C", "D", "Cx")
 
@@ -99,6 +109,9 @@ class KoopmanModel:
     max_seconds : float or None
         Wall-clock budget of :meth:`fit`; training stops after the batch that exceeds it
         (``stopped_early_`` is then True). None: no limit.
+    clip_inputs : bool
+        Whether :meth:`lift` clips a state into the range of the training states first
+        (``x_min_ .. x_max_``), so that the model never extrapolates.
 
     Attributes
     ----------
@@ -108,6 +121,9 @@ class KoopmanModel:
     D_ : ndarray, shape (ny, nu)
     Cx_ : ndarray, shape (nx, nz)
         Map from lifted state to state features (selection when ``include_state``).
+    x_min_, x_max_ : ndarray, shape (nx,)
+        Smallest and largest value of each state feature in the training data (``X`` and
+        ``X_next``); infinite for a model read from a version-1 file.
     lifting_ : MLPLifting, RBFLifting or None
         The dictionary ``psi`` (None for ``"none"``).
     n_lifted_ : int
@@ -146,6 +162,7 @@ class KoopmanModel:
         ridge: float = 1e-6,
         seed: int = 0,
         max_seconds: float | None = 60.0,
+        clip_inputs: bool = True,
     ) -> None:
         self.lifting = lifting
         self.n_lift = n_lift
@@ -162,6 +179,7 @@ class KoopmanModel:
         self.ridge = ridge
         self.seed = seed
         self.max_seconds = max_seconds
+        self.clip_inputs = clip_inputs
 
     _PARAM_NAMES = (
         "lifting",
@@ -179,6 +197,7 @@ class KoopmanModel:
         "ridge",
         "seed",
         "max_seconds",
+        "clip_inputs",
     )
 
     def get_params(self) -> dict[str, Any]:
@@ -216,8 +235,9 @@ class KoopmanModel:
             raise ParameterError(f"lifting must be one of {LIFTING_KINDS}, got {self.lifting!r}")
         if self.rbf_kind not in RBF_KINDS:
             raise ParameterError(f"rbf_kind must be one of {RBF_KINDS}, got {self.rbf_kind!r}")
-        if not isinstance(self.include_state, bool):
-            raise ParameterError(f"include_state must be a bool, got {self.include_state!r}")
+        for flag in ("include_state", "clip_inputs"):
+            if not isinstance(getattr(self, flag), bool):
+                raise ParameterError(f"{flag} must be a bool, got {getattr(self, flag)!r}")
         if self.lifting == "none" and not self.include_state:
             raise ParameterError("lifting='none' needs include_state=True (otherwise z would be empty)")
         hidden = self.hidden
@@ -321,6 +341,8 @@ class KoopmanModel:
             lifting = self._train_mlp(X, U, X_next, Y, windows, mean, std, deadline, on_epoch)
         self.lifting_ = lifting
         self.nx_, self.nu_ = nx, nu
+        self.x_min_ = np.minimum(X.min(axis=0), X_next.min(axis=0))
+        self.x_max_ = np.maximum(X.max(axis=0), X_next.max(axis=0))
 
         # Final least squares on all data with the final lifting, float64.
         Z = self._lift(X)
@@ -399,7 +421,7 @@ class KoopmanModel:
             raise RuntimeError("this KoopmanModel is not fitted yet: call fit() or load() first")
 
     def lift(self, X: np.ndarray) -> np.ndarray:
-        """Lifted state ``z = [x, psi(x)]``.
+        """Lifted state ``z = [x, psi(x)]``, of ``x`` clipped into the training range when ``clip_inputs``.
 
         Parameters
         ----------
@@ -413,6 +435,8 @@ class KoopmanModel:
         X = np.asarray(X, dtype=float)
         if X.ndim not in (1, 2) or X.shape[-1] != self.nx_:
             raise ParameterError(f"lift: expected shape (n, {self.nx_}) or ({self.nx_},), got {X.shape}")
+        if self.clip_inputs:
+            X = np.minimum(np.maximum(X, self.x_min_), self.x_max_)
         return self._lift(X)
 
     def _lift(self, X: np.ndarray) -> np.ndarray:
@@ -557,6 +581,8 @@ class KoopmanModel:
         }
         arrays: dict[str, np.ndarray] = {name: getattr(self, f"{name}_") for name in _MATRICES}
         arrays["history"] = np.array(self.history_, dtype=float).reshape(-1, 2)
+        arrays["x_min"] = np.asarray(self.x_min_, dtype=float)
+        arrays["x_max"] = np.asarray(self.x_max_, dtype=float)
         if self.lifting_ is not None:
             for key, value in self.lifting_.to_arrays().items():
                 arrays[f"lifting.{key}"] = value
@@ -598,10 +624,12 @@ class KoopmanModel:
             raise InputFileError(
                 path, f"format is {header.get('format')!r}, expected {FORMAT_NAME!r}", field="metadata.format"
             )
-        if header.get("format_version") != FORMAT_VERSION:
+        version = header.get("format_version")
+        if version not in READABLE_VERSIONS:
+            readable = ", ".join(map(str, READABLE_VERSIONS))
             raise InputFileError(
                 path,
-                f"unsupported format version {header.get('format_version')!r} (readable: {FORMAT_VERSION})",
+                f"unsupported format version {version!r} (readable: {readable})",
                 field="metadata.format_version",
             )
         sizes: dict[str, int] = {}
@@ -683,7 +711,15 @@ class KoopmanModel:
                 field="metadata.n_lifted",
             )
 
+        if version == 1:
+            x_min, x_max = np.full(nx, -np.inf), np.full(nx, np.inf)
+        else:
+            x_min, x_max = (_state_range(path, arrays, key, nx) for key in ("x_min", "x_max"))
+            if np.any(x_min > x_max):
+                raise InputFileError(path, "x_min exceeds x_max for some feature", field="x_min")
+
         model.lifting_ = lifting
+        model.x_min_, model.x_max_ = x_min, x_max
         model.A_, model.B_, model.C_, model.D_, model.Cx_ = (mats[k] for k in _MATRICES)
         model.n_lifted_, model.nx_, model.nu_, model.ny_ = nz, nx, nu, ny
         model.output_is_state_ = bool(header.get("output_is_state", False))
@@ -694,6 +730,19 @@ class KoopmanModel:
         model.epochs_run_ = int(header.get("epochs_run", 0))
         model.metadata_ = dict(header.get("user") or {})
         return model
+
+
+def _state_range(path: Path, arrays: dict[str, np.ndarray], key: str, nx: int) -> np.ndarray:
+    """The ``x_min`` or ``x_max`` array of a saved model: present, shape (nx,), finite."""
+    if key not in arrays:
+        raise InputFileError(path, f"missing array {key!r}", field=key)
+    value = arrays[key]
+    if value.shape != (nx,) or not np.issubdtype(value.dtype, np.number):
+        problem = f"{key} must be a numeric array of shape ({nx},), got {value.shape}"
+        raise InputFileError(path, problem, field=key)
+    if not np.all(np.isfinite(value)):
+        raise InputFileError(path, f"{key} contains NaN or infinite values", field=key)
+    return value.astype(float)
 
 
 def _read_npz(path: Path) -> dict[str, np.ndarray]:
