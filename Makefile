@@ -3,7 +3,7 @@ PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 
-.PHONY: demo test lint bench tracks-table learning-table study-tracks study-data faults results clean
+.PHONY: demo test lint bench bench-breakdown tracks-table learning-table study-tracks study-data faults results clean
 
 # PyTorch first and pinned exactly: a looser pin pulls a multi-gigabyte CUDA build.
 $(BIN)/python:
@@ -31,6 +31,10 @@ test: $(VENV)/.installed-test
 
 bench: $(VENV)/.installed
 	$(BIN)/python benchmarks/bench_step.py --out runs/bench/step_times.json
+
+# Where the time of one RKMPC step goes, stage by stage.
+bench-breakdown: $(VENV)/.installed
+	$(BIN)/python benchmarks/bench_breakdown.py --out runs/bench/breakdown.json
 
 tracks-table: $(VENV)/.installed
 	$(BIN)/python benchmarks/tracks_table.py --out runs/tracks
