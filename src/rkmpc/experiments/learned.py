@@ -150,7 +150,7 @@ def _code_hash() -> str:
     return digest.hexdigest()[:16]
 
 
-def _report_info(report: Any, kind: str) -> dict[str, Any]:
+def _report_info(report: Any, kind: str, model: KoopmanModel) -> dict[str, Any]:
     info = asdict(report)
     err = info.pop("multi_step_error")
     return {
@@ -162,6 +162,9 @@ def _report_info(report: Any, kind: str) -> dict[str, Any]:
         "fit_time_s": info["fit_time_s"],
         "heldout_error_step1": err[0] if err else None,
         "heldout_error_last": err[-1] if err else None,
+        # The state range the model was trained on; it clips states into it (no extrapolation).
+        "state_min": model.x_min_.tolist(),
+        "state_max": model.x_max_.tolist(),
     }
 
 
@@ -209,7 +212,7 @@ def train_kmpc(
         model, report = train_model(
             data, scenario.vehicle.wheelbase, TrainConfig(kind="koopman", augment=augment, model=options)
         )
-        return model, {**_report_info(report, "koopman"), "collect_time_s": collect_time}
+        return model, {**_report_info(report, "koopman", model), "collect_time_s": collect_time}
 
     if cache is None:
         model, info = build()
@@ -232,7 +235,7 @@ def train_residual(
 
     def build() -> tuple[KoopmanModel, dict[str, Any]]:
         model, report = train_model(data, scenario.vehicle.wheelbase, config)
-        return model, _report_info(report, kind)
+        return model, _report_info(report, kind, model)
 
     if cache is None:
         model, info = build()
