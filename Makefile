@@ -3,7 +3,7 @@ PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 
-.PHONY: demo test lint bench bench-breakdown tracks-table learning-table study-tracks study-data faults results clean
+.PHONY: demo test test-slow test-all lint bench bench-breakdown tracks-table learning-table study-tracks study-data faults results clean
 
 # PyTorch first and pinned exactly: a looser pin pulls a multi-gigabyte CUDA build.
 $(BIN)/python:
@@ -12,11 +12,11 @@ $(BIN)/python:
 	$(BIN)/python -m pip install --quiet torch==2.13.0
 
 $(VENV)/.installed: pyproject.toml | $(BIN)/python
-	$(BIN)/python -m pip install --quiet -e .
+	$(BIN)/python -m pip install --quiet -e '.[train]'
 	touch $@
 
 $(VENV)/.installed-test: pyproject.toml | $(BIN)/python
-	$(BIN)/python -m pip install --quiet -e '.[test]'
+	$(BIN)/python -m pip install --quiet -e '.[train,test]'
 	touch $@ $(VENV)/.installed
 
 # The paper's Table I on the built-in track: two LMPC laps of data, the residual models and
@@ -24,10 +24,17 @@ $(VENV)/.installed-test: pyproject.toml | $(BIN)/python
 demo: $(VENV)/.installed
 	$(BIN)/rkmpc compare --track builtin --out runs/demo
 
+# The fast tier (under 4 minutes on two quiet cores); `make test-slow` runs the long end-to-end tests.
 test: $(VENV)/.installed-test
 	$(BIN)/ruff check src tests benchmarks
+	$(BIN)/ruff format --check src tests benchmarks
 	$(BIN)/mypy
-	$(BIN)/python -m pytest
+	$(BIN)/python -m pytest -m "not slow"
+
+test-slow: $(VENV)/.installed-test
+	$(BIN)/python -m pytest -m slow
+
+test-all: test test-slow
 
 bench: $(VENV)/.installed
 	$(BIN)/python benchmarks/bench_step.py --out runs/bench/step_times.json

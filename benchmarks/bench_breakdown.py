@@ -27,12 +27,14 @@ from typing import Any
 
 import numpy as np
 
-from rkmpc.control.factory import make_controller
-from rkmpc.experiments.learned import TrackStudy, prepare_controllers
-from rkmpc.experiments.runner import RunSpec, build_plant, versions
-from rkmpc.scenario import load_scenario
+from rkmpc.control.registry import make_controller
+from rkmpc.core.io import write_json_atomic
+from rkmpc.core.versions import versions
+from rkmpc.experiments.compare import CompareConfig
+from rkmpc.experiments.models import learn_models
 from rkmpc.sim.closed_loop import SimConfig, simulate
-from rkmpc.sim.log import write_json_atomic
+from rkmpc.sim.run import RunSpec, build_plant
+from rkmpc.sim.scenario import load_scenario
 
 SHARED_MONZA = Path(__file__).resolve().parents[1].parent / "shared" / "tracks" / "centerlines" / "Monza.csv"
 
@@ -89,8 +91,8 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=Path("runs/bench/breakdown.json"))
     args = parser.parse_args()
     scenario = load_scenario(args.track)
-    study = TrackStudy(track=scenario.track.source or scenario.track.name, controllers=("rkmpc",))
-    options, _ = prepare_controllers(scenario, study)
+    study = CompareConfig(track=scenario.track.source or scenario.track.name, controllers=("rkmpc",))
+    options, _ = learn_models(scenario, study.plan())
     # The controller gets its own reference object: the simulator's projections are not timed.
     reference = copy.copy(scenario.reference)
     controller = make_controller("rkmpc", reference, scenario.vehicle, **options["rkmpc"])

@@ -21,12 +21,15 @@ from typing import Any
 
 import numpy as np
 
-from rkmpc.control.lmpc import LMPCConfig
-from rkmpc.control.nmpc import NMPCConfig
-from rkmpc.experiments.learned import TrackStudy, prepare_controllers
-from rkmpc.experiments.runner import RunSpec, run_controller, versions
-from rkmpc.scenario import Scenario, load_scenario
-from rkmpc.sim.log import write_json_atomic
+from rkmpc.control.linear.lmpc import LMPCConfig
+from rkmpc.control.nonlinear.nmpc import NMPCConfig
+from rkmpc.core.io import write_json_atomic
+from rkmpc.core.versions import versions
+from rkmpc.experiments.compare import CompareConfig
+from rkmpc.experiments.models import learn_models
+from rkmpc.experiments.runs import run_controller
+from rkmpc.sim.run import RunSpec
+from rkmpc.sim.scenario import Scenario, load_scenario
 
 SHARED_MONZA = Path(__file__).resolve().parents[1].parent / "shared" / "tracks" / "centerlines" / "Monza.csv"
 
@@ -45,12 +48,12 @@ CASES = (
 def learned_cases(scenario: Scenario, kmpc_model: Path | None) -> list[tuple[str, str, dict[str, Any]]]:
     """Learn as ``rkmpc compare`` does: two LMPC laps of the track, models from the cache when there."""
     names = ("lmpc-id", "rkmpc", "rkmpc-paper", "kmpc")
-    study = TrackStudy(
+    study = CompareConfig(
         track=scenario.track.source or scenario.track.name,
         controllers=names,
         kmpc_model=None if kmpc_model is None else str(kmpc_model),
     )
-    options, _ = prepare_controllers(scenario, study)
+    options, _ = learn_models(scenario, study.plan())
     return [(name, name, options[name]) for name in names]
 
 

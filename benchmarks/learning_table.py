@@ -24,13 +24,14 @@ from typing import Any
 
 import numpy as np
 
-from rkmpc.control.rkmpc import ResidualMPCConfig
-from rkmpc.experiments.learned import LEARNED_CONTROLLERS, RKMPC_CONFIG, TrackStudy, evaluate_track
-from rkmpc.learning.augmentation import AugmentConfig
-from rkmpc.learning.collect import collect_excitation
-from rkmpc.learning.pipeline import TrainConfig, default_model_options, train_model
-from rkmpc.scenario import load_scenario
-from rkmpc.sim.log import write_json_atomic
+from rkmpc.analysis.statistics import change_pct
+from rkmpc.control.learned.rkmpc import ResidualMPCConfig
+from rkmpc.core.io import write_json_atomic
+from rkmpc.experiments.compare import LEARNED_CONTROLLERS, RKMPC_CONFIG, CompareConfig, compare
+from rkmpc.learning.pipeline import TrainConfig, train_model
+from rkmpc.learning.recipes import recipe_of_kind
+from rkmpc.sim.collect import collect_excitation
+from rkmpc.sim.scenario import load_scenario
 
 SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "tracks" / "centerlines"
 KEYS = (
@@ -40,11 +41,11 @@ KEYS = (
 )
 
 
-def _job(study: TrackStudy) -> dict[str, Any]:
+def _job(study: CompareConfig) -> dict[str, Any]:
     import torch
 
     torch.set_num_threads(1)
-    return evaluate_track(study)
+    return compare(study).to_json()
 
 
 def train_kmpc(out: Path, samples: int, seed: int) -> Path:
@@ -53,15 +54,12 @@ def train_kmpc(out: Path, samples: int, seed: int) -> Path:
     if path.exists():
         return path
     scenario = load_scenario("builtin")
+    recipe = recipe_of_kind("koopman")
     data = collect_excitation(scenario, n_samples=samples, seed=seed)
     model, report = train_model(
         data,
         scenario.vehicle.wheelbase,
-        TrainConfig(
-            kind="koopman",
-            augment=AugmentConfig(ratio=0.05, seed=seed),
-            model=default_model_options("koopman", seed=seed),
-        ),
+        TrainConfig(kind="koopman", augment=recipe.augment(seed), model=recipe.default_model(seed)),
     )
     model.save(path, metadata=model.metadata_)
     print(
@@ -72,7 +70,8 @@ def train_kmpc(out: Path, samples: int, seed: int) -> Path:
 
 
 def _change(a: float | None, b: float | None) -> str:
-    return "-" if a is None or b is None or not b else f"{100 * (a - b) / b:+.0f}%"
+    change = change_pct(a, b)
+    return "-" if change is None else f"{change:+.0f}%"
 
 
 def main() -> None:
@@ -96,7 +95,7 @@ def main() -> None:
         tracks = [t for t in tracks if Path(t).stem in wanted]
     rk: ResidualMPCConfig = replace(RKMPC_CONFIG, **json.loads(args.rkmpc))
     studies = [
-        TrackStudy(t, controllers=controllers, seed=args.seed, kmpc_model=kmpc, rkmpc=rk) for t in tracks
+        CompareConfig(t, controllers=controllers, seed=args.seed, kmpc_model=kmpc, rkmpc=rk) for t in tracks
     ]
     rows = []
     # Spawned workers: forking after PyTorch has started its threads can deadlock.

@@ -19,8 +19,8 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
-from rkmpc.analysis.table import fault_table, markdown_table
-from rkmpc.experiments.studies import data_markdown, tracks_markdown
+from rkmpc.analysis.tables import fault_table, markdown_table
+from rkmpc.experiments.studies.tracks import data_markdown, tracks_markdown
 
 #: The paper's Matlab step times (mean, max) in ms, from its Table I.
 PAPER_MS = {"lmpc": (2.38, 13.30), "nmpc": (13.68, 66.38), "kmpc": (3.78, 17.58), "rkmpc": (6.73, 16.14)}

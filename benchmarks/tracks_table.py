@@ -18,10 +18,12 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
-from rkmpc.analysis.table import TABLE_COLUMNS, format_cell
-from rkmpc.experiments.runner import RunSpec, run_controller, versions
-from rkmpc.scenario import load_scenario
-from rkmpc.sim.log import write_json_atomic
+from rkmpc.analysis.tables import TABLE_COLUMNS, format_cell
+from rkmpc.core.io import write_json_atomic
+from rkmpc.core.versions import versions
+from rkmpc.experiments.runs import run_controller
+from rkmpc.sim.run import RunSpec
+from rkmpc.sim.scenario import load_scenario
 
 SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "tracks" / "centerlines"
 
@@ -36,7 +38,7 @@ def run_track(job: tuple[str, str, float, bool]) -> tuple[str, str, dict[str, An
     scenario = load_scenario(track, scale=scale)
     options = None
     if nmpc_sqp and controller.startswith("nmpc"):
-        from rkmpc.control.nmpc import NMPCConfig
+        from rkmpc.control.nonlinear.nmpc import NMPCConfig
 
         options = {"config": NMPCConfig(**FAST_NMPC)}
     _result, metrics = run_controller(scenario, RunSpec(controller=controller), controller_options=options)

@@ -26,6 +26,6 @@ def shared_tracks() -> Path:
 @pytest.fixture(scope="session")
 def builtin_scenario():
     """The built-in track with the f1tenth car."""
-    from rkmpc.scenario import load_scenario
+    from rkmpc.sim.scenario import load_scenario
 
     return load_scenario("builtin")

@@ -79,6 +79,7 @@ def test_missing_track_file(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("track", ["Monza", "Silverstone"])
+@pytest.mark.slow
 def test_run_on_shared_track(tmp_path, shared_tracks, track):
     out = tmp_path / track
     path = shared_tracks / "centerlines" / f"{track}.csv"
@@ -90,6 +91,7 @@ def test_run_on_shared_track(tmp_path, shared_tracks, track):
     assert metrics["lateral_accel_max_m_s2"] >= 4.0
 
 
+@pytest.mark.slow
 def test_collect_train_run_learned(tmp_path):
     data = tmp_path / "data.npz"
     assert main(["collect", "--track", "oval", "--laps", "1", "--out", str(data)]) == 0
@@ -130,6 +132,7 @@ def test_model_of_the_wrong_kind_is_refused(tmp_path, capsys):
     assert "paper" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_run_of_a_learned_controller_without_model_trains_it(tmp_path):
     out = tmp_path / "o"
     args = ["run", "--controller", "lmpc-id", "--track", "oval", "--no-cache", "--out", str(out)]
@@ -144,7 +147,7 @@ def test_collect_from_a_run_log(tmp_path):
     assert main(["run", "--controller", "pp", "--track", "oval", "--out", str(run)]) == 0
     data = tmp_path / "from_log.npz"
     assert main(["collect", "--from-log", str(run / "log.csv"), "--out", str(data)]) == 0
-    from rkmpc.learning.dataset import TransitionDataset
+    from rkmpc.learning.data.dataset import TransitionDataset
 
     loaded = TransitionDataset.load(data)
     assert len(loaded) > 100
@@ -185,6 +188,7 @@ def _learning_compare(out, cache):
     )
 
 
+@pytest.mark.slow
 def test_compare_learns_and_writes_the_results_schema(tmp_path):
     out, cache = tmp_path / "cmp", tmp_path / "cache"
     assert _learning_compare(out, cache) == 0
@@ -213,6 +217,7 @@ def test_compare_learns_and_writes_the_results_schema(tmp_path):
     assert len(list(cache.glob("*.rkm"))) == 2  # the KMPC and the residual model
 
 
+@pytest.mark.slow
 def test_second_compare_reuses_the_cached_models(tmp_path):
     cache = tmp_path / "cache"
     assert _learning_compare(tmp_path / "a", cache) == 0
@@ -233,6 +238,7 @@ def test_model_for_a_controller_without_one_is_an_error(tmp_path, capsys):
     assert "takes no model" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_compare_with_a_fault_reports_its_effect(tmp_path, capsys):
     out = tmp_path / "fault"
     args = ["compare", "--controllers", "pp,lmpc", "--track", "oval", "--fault", "delay", "--out", str(out)]
@@ -268,6 +274,7 @@ def test_study_tracks_in_parallel_writes_json_and_markdown(tmp_path, capsys):
     assert "| pp |" in (out / "study_tracks.md").read_text()
 
 
+@pytest.mark.slow
 def test_study_data_writes_json_plot_and_markdown(tmp_path):
     out = tmp_path / "sd"
     args = ["study", "data", "--sizes", "1000", "--seeds", "0", "--controllers", "rkmpc", "--epochs", "1"]

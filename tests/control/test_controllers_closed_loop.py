@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from rkmpc.control import LMPCConfig, Observation, make_controller
-from rkmpc.experiments.runner import RunSpec, run_controller
+from rkmpc.experiments.runs import run_controller
+from rkmpc.sim.run import RunSpec
 
 
 @pytest.mark.parametrize("name", ["pp", "lmpc"])

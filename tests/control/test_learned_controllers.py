@@ -5,20 +5,25 @@ import pytest
 
 from rkmpc.analysis.metrics import lap_metrics
 from rkmpc.control import Observation, make_controller
-from rkmpc.control.rkmpc import ResidualKoopmanMPC
-from rkmpc.experiments.runner import RunSpec, run_controller
-from rkmpc.learning.augmentation import AugmentConfig
-from rkmpc.learning.collect import collect, collect_excitation
+from rkmpc.control.learned.rkmpc import ResidualKoopmanMPC
+from rkmpc.experiments.runs import run_controller
+from rkmpc.learning.data.augmentation import AugmentConfig
 from rkmpc.learning.identification import identify
-from rkmpc.learning.pipeline import TrainConfig, default_model_options, train_model
+from rkmpc.learning.pipeline import TrainConfig, train_model
+from rkmpc.learning.recipes import recipe_of_kind
 from rkmpc.sim.closed_loop import SimConfig, simulate
-from rkmpc.vehicle.plant import make_plant
+from rkmpc.sim.collect import collect, collect_excitation
+from rkmpc.sim.run import RunSpec
+from rkmpc.vehicle.registry import make_plant
+
+# The module trains four models (about 10 s) and drives laps with them.
+pytestmark = pytest.mark.slow
 
 
 def _train(data, wheelbase, kind, epochs, ratio=0.3):
-    options = {**default_model_options(kind), "epochs": epochs}
+    model = recipe_of_kind(kind).default_model(seed=0, epochs=epochs)
     return train_model(
-        data, wheelbase, TrainConfig(kind=kind, augment=AugmentConfig(ratio=ratio), model=options)
+        data, wheelbase, TrainConfig(kind=kind, augment=AugmentConfig(ratio=ratio), model=model)
     )
 
 
@@ -141,8 +146,8 @@ def test_rkmpc_factorised_qps_match_daqp_factorising_them(builtin_scenario, lear
 
 def test_kmpc_gradient_equals_the_textbook_formula(builtin_scenario, learned):
     # KMPC assembles its gradient from precomputed, doubled terms; check it against the plain formula.
-    from rkmpc.control.koopman_mpc import kmpc_features
-    from rkmpc.control.rkmpc import reference_in_local_frame
+    from rkmpc.control.learned.lifted import reference_in_local_frame
+    from rkmpc.learning.features import KMPC_STATE
 
     sc = builtin_scenario
     ctrl = make_controller("kmpc", sc.reference, sc.vehicle, model=learned["kmpc"])
@@ -165,7 +170,7 @@ def test_kmpc_gradient_equals_the_textbook_formula(builtin_scenario, learned):
         local = reference_in_local_frame(ref, obs).ravel()
         d0 = np.zeros(2 * n)
         d0[:2] = previous
-        z0 = learned["kmpc"].lift(kmpc_features(obs))
+        z0 = learned["kmpc"].lift(KMPC_STATE.of_observation(obs))
         f = 2.0 * (ctrl._MtQ @ (ctrl._Mz @ z0 - local) - p.r_diag * u_ref - p.D.T @ (p.w_rate * d0))
         np.testing.assert_allclose(seen[-1], f, rtol=1e-12, atol=1e-12)
     assert len(seen) == 3

@@ -1,6 +1,6 @@
 import numpy as np
 
-from rkmpc.control.lifted import lifted_prediction
+from rkmpc.control.learned.lifted import lifted_prediction
 
 
 def _rollout(A, B, C, D, z0, U, first):

@@ -1,8 +1,9 @@
 import numpy as np
 import pytest
 
-from rkmpc.control.lmpc import KinematicMPCProblem, LMPCConfig
-from rkmpc.errors import ParameterError
+from rkmpc.control.linear.lmpc import LMPCConfig
+from rkmpc.control.linear.problem import KinematicMPCProblem
+from rkmpc.core.errors import ParameterError
 from rkmpc.vehicle.kinematic import linearize_discrete
 from rkmpc.vehicle.params import f1tenth
 
@@ -70,7 +71,7 @@ def test_config_validation():
 
 
 def test_general_condense_matches_kinematic_fast_path():
-    from rkmpc.control.lmpc import condense
+    from rkmpc.control.linear.problem import condense
 
     cfg = LMPCConfig(horizon=10)
     prob = KinematicMPCProblem(cfg, f1tenth())
@@ -84,7 +85,7 @@ def test_general_condense_matches_kinematic_fast_path():
 
 def test_prediction_matrices_equal_linearisation_condensed():
     # The inlined linearisation along the horizon is the one of linearize_discrete.
-    from rkmpc.control.lmpc import condense
+    from rkmpc.control.linear.problem import condense
 
     cfg = LMPCConfig()
     prob = KinematicMPCProblem(cfg, f1tenth())

@@ -4,12 +4,12 @@ import numpy as np
 import pytest
 
 from rkmpc.analysis.metrics import lap_metrics
-from rkmpc.control.base import Observation
-from rkmpc.control.lmpc import LinearMPC
-from rkmpc.control.nmpc import DynamicNMPC, KinematicNMPC, NMPCConfig
-from rkmpc.errors import ParameterError
+from rkmpc.control.linear.lmpc import LinearMPC
+from rkmpc.control.nonlinear.nmpc import DynamicNMPC, KinematicNMPC, NMPCConfig
+from rkmpc.core.errors import ParameterError
+from rkmpc.core.observation import Observation
 from rkmpc.sim.closed_loop import simulate
-from rkmpc.vehicle.plant import make_plant
+from rkmpc.vehicle.registry import make_plant
 
 
 def _off_path_observation(scenario, s=5.0, offset=0.4, yaw_error=0.5, speed=3.0):
@@ -35,6 +35,7 @@ def _on_path_observation(scenario, s=5.0):
     )
 
 
+@pytest.mark.slow
 def test_kinematic_nmpc_laps_builtin_and_tracks_like_lmpc(builtin_scenario):
     sc = builtin_scenario
     lmpc = lap_metrics(
@@ -50,6 +51,7 @@ def test_kinematic_nmpc_laps_builtin_and_tracks_like_lmpc(builtin_scenario):
     assert ctrl.step_count == nmpc["steps"]
 
 
+@pytest.mark.slow
 def test_dynamic_nmpc_laps_builtin(builtin_scenario):
     sc = builtin_scenario
     ctrl = DynamicNMPC(sc.reference, sc.vehicle)

@@ -5,12 +5,12 @@ import pytest
 
 from rkmpc.analysis.metrics import lap_metrics
 from rkmpc.control import make_controller
-from rkmpc.control.base import Observation
-from rkmpc.control.nmpc import NMPCConfig
-from rkmpc.control.nmpc_acados import acados_cache_dir
-from rkmpc.errors import ParameterError
+from rkmpc.control.nonlinear.acados import acados_cache_dir
+from rkmpc.control.nonlinear.nmpc import NMPCConfig
+from rkmpc.core.errors import ParameterError
+from rkmpc.core.observation import Observation
 from rkmpc.sim.closed_loop import simulate
-from rkmpc.vehicle.plant import make_plant
+from rkmpc.vehicle.registry import make_plant
 
 pytest.importorskip("acados", reason="acados is the optional extra rkmpc[acados]")
 pytest.importorskip("Cython", reason="the acados NMPCs build a Cython module")

@@ -1,11 +1,11 @@
-"""ModelCache: a model is trained once per recipe, stale or broken entries are rebuilt."""
+"""ModelCache: a model is trained once per spec, stale or broken entries are rebuilt."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from rkmpc.experiments.cache import ModelCache, default_cache_dir, recipe_key
-from rkmpc.learning.koopman import KoopmanModel
+from rkmpc.experiments.cache import ModelCache, default_cache_dir, spec_key
+from rkmpc.learning.koopman.model import KoopmanModel
 
 
 def _linear_model(seed: int) -> KoopmanModel:
@@ -13,7 +13,7 @@ def _linear_model(seed: int) -> KoopmanModel:
     X = rng.normal(size=(200, 2))
     U = rng.normal(size=(200, 1))
     X_next = X @ np.array([[0.9, 0.1], [0.0, 0.8]]).T + U @ np.array([[0.0, 0.5]])
-    return KoopmanModel(lifting="none").fit(X, U, X_next)
+    return KoopmanModel(None).fit(X, U, X_next)
 
 
 class _Builder:
@@ -28,37 +28,37 @@ class _Builder:
 def test_second_lookup_is_a_hit_with_the_stored_info(tmp_path):
     cache = ModelCache(tmp_path)
     build = _Builder()
-    recipe = {"name": "kmpc", "samples": 1000, "seed": 0}
-    first, hit1 = cache.get_or_build(recipe, build)
-    second, hit2 = cache.get_or_build(dict(recipe), build)
+    spec = {"name": "kmpc", "samples": 1000, "seed": 0}
+    first, hit1 = cache.get_or_build(spec, build)
+    second, hit2 = cache.get_or_build(dict(spec), build)
     assert build.calls == 1
     assert (hit1.hit, hit2.hit) == (False, True)
     assert hit2.info == {"fit_time_s": 0.5, "call": 1}
-    assert hit1.key == hit2.key == recipe_key(recipe)
+    assert hit1.key == hit2.key == spec_key(spec)
     np.testing.assert_array_equal(first.A_, second.A_)
-    assert second.metadata_["cache_recipe"] == recipe
+    assert second.metadata_["cache_spec"] == spec
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
 
 
-def test_a_changed_recipe_trains_again(tmp_path):
+def test_a_changed_spec_trains_again(tmp_path):
     cache = ModelCache(tmp_path)
     build = _Builder()
     cache.get_or_build({"name": "kmpc", "seed": 0}, build)
     _, hit = cache.get_or_build({"name": "kmpc", "seed": 1}, build)
     assert build.calls == 2 and not hit.hit
     # Key order does not matter.
-    assert recipe_key({"a": 1, "b": [1, 2]}) == recipe_key({"b": (1, 2), "a": 1})
+    assert spec_key({"a": 1, "b": [1, 2]}) == spec_key({"b": (1, 2), "a": 1})
 
 
 def test_a_corrupted_entry_is_rebuilt(tmp_path):
     cache = ModelCache(tmp_path)
     build = _Builder()
-    recipe = {"name": "residual", "data_hash": "abc"}
-    cache.get_or_build(recipe, build)
-    cache.path_for(recipe).write_bytes(b"not a model")
-    model, hit = cache.get_or_build(recipe, build)
+    spec = {"name": "residual", "data_hash": "abc"}
+    cache.get_or_build(spec, build)
+    cache.path_for(spec).write_bytes(b"not a model")
+    model, hit = cache.get_or_build(spec, build)
     assert build.calls == 2 and not hit.hit
-    assert KoopmanModel.load(cache.path_for(recipe)).A_.shape == model.A_.shape
+    assert KoopmanModel.load(cache.path_for(spec)).A_.shape == model.A_.shape
 
 
 def test_default_dir_follows_the_environment(monkeypatch, tmp_path):

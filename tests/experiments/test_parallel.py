@@ -8,7 +8,7 @@ import os
 
 import pytest
 
-from rkmpc.errors import ParameterError
+from rkmpc.core.errors import ParameterError
 from rkmpc.experiments.parallel import Job, JobError, run_jobs
 
 # Module-level functions of the standard library: picklable by reference in any worker.
@@ -73,6 +73,7 @@ def test_duplicate_names_and_bad_jobs():
     assert run_jobs([]) == []
 
 
+@pytest.mark.slow
 def test_dask_local_cluster_matches_serial():
     distributed = pytest.importorskip("distributed")
     with (

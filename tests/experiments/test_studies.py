@@ -3,27 +3,24 @@
 from __future__ import annotations
 
 import json
-import math
+from dataclasses import asdict
 
 import numpy as np
 import pytest
 from matplotlib.collections import PolyCollection
 from matplotlib.figure import Figure
 
+from rkmpc.analysis.metrics import LapMetrics
+from rkmpc.analysis.statistics import RunGroup, summarise_runs
 from rkmpc.analysis.study_plots import plot_data_study
-from rkmpc.errors import ParameterError
-from rkmpc.experiments.studies import (
-    DataStudyConfig,
+from rkmpc.core.errors import ParameterError
+from rkmpc.core.versions import versions
+from rkmpc.experiments.studies.common import expand_tracks
+from rkmpc.experiments.studies.data import DataStudyConfig, DataStudyResult, study_data, summarise_sizes
+from rkmpc.experiments.studies.tracks import (
     TracksStudyConfig,
-    aggregate_data,
-    aggregate_tracks,
-    change_pct,
-    data_markdown,
-    expand_tracks,
-    stats,
-    study_data,
+    TracksStudyResult,
     study_tracks,
-    to_json_ready,
     tracks_markdown,
 )
 
@@ -41,6 +38,8 @@ def _metrics(lat: float, completed: bool = True, progress: float = 1.0, **extra:
         "solve_ms_p99": 1.0,
         "solve_ms_max": 2.0,
         "fallback_count": 0,
+        "steps": 100,
+        "lateral_accel_max_m_s2": None,
     }
     base.update(extra)
     return base
@@ -50,10 +49,12 @@ def _metrics(lat: float, completed: bool = True, progress: float = 1.0, **extra:
 # small parallel runs
 
 
+@pytest.mark.slow
 def test_study_tracks_two_builtin_tracks_in_parallel():
     seen = []
     cfg = TracksStudyConfig(tracks=("builtin", "oval"), controllers=("pp", "lmpc"), seeds=(0,))
-    result = study_tracks(cfg, n_jobs=2, progress=lambda o, done, total: seen.append((o.name, done, total)))
+    typed = study_tracks(cfg, n_jobs=2, progress=lambda o, done, total: seen.append((o.name, done, total)))
+    result = typed.to_json()
     assert sorted(s[0] for s in seen) == ["builtin seed 0", "oval seed 0"]
     assert [s[1:] for s in sorted(seen, key=lambda s: s[1])] == [(1, 2), (2, 2)]
     json.dumps(result, allow_nan=False)
@@ -72,21 +73,19 @@ def test_study_tracks_two_builtin_tracks_in_parallel():
     lmpc_change = result["summary"]["lmpc"]["change_pct"]["lateral_error_mean_m"]
     assert lmpc_change["mean"] == 0.0 and lmpc_change["n"] == 2
     assert len(result["rows"]) == 4
-    md = tracks_markdown(result)
+    md = typed.to_markdown()
     assert md.index("| controller |") < md.index("| track | seed |")
     assert "| pp | 2/2 |" in md and "| oval | 0 | lmpc | yes |" in md
 
 
+@pytest.mark.slow
 def test_study_data_tiny_sizes_in_parallel():
-    cfg = DataStudyConfig(
-        sizes=(350, 1400),
-        seeds=(0,),
-        model_options={"epochs": 1, "max_seconds": 1.0, "hidden": (16, 16), "n_lift": 8},
-    )
-    result = study_data(cfg, n_jobs=2)
+    cfg = DataStudyConfig(sizes=(350, 1400), seeds=(0,), epochs=1)
+    typed = study_data(cfg, n_jobs=2)
+    result = typed.to_json()
     json.dumps(result, allow_nan=False)
     assert result["sizes"] == [350, 1400] and result["seeds"] == [0]
-    assert result["config"]["model_options"]["epochs"] == 1
+    assert result["config"]["epochs"] == 1
     jobs = result["jobs"]
     assert [(j["controller"], j["size"]) for j in jobs] == [
         ("rkmpc", 350),
@@ -98,7 +97,8 @@ def test_study_data_tiny_sizes_in_parallel():
         assert j["ok"], j["error"]
         assert abs(j["augmented_count"] - j["size"]) <= 35 / 2
         assert j["target_met"]
-        assert j["model_options"]["seed"] == 0 and j["model_options"]["epochs"] == 1
+        training = j["model_options"]["lifting"]["training"]
+        assert training["seed"] == 0 and training["epochs"] == 1
         assert 0 < j["ratio"] <= 1
         assert set(j["metrics"]) >= {"completed", "progress", "lateral_error_mean_m"}
     rk = [j for j in jobs if j["controller"] == "rkmpc"]
@@ -114,9 +114,9 @@ def test_study_data_tiny_sizes_in_parallel():
         ("kmpc", 350, 1),
         ("kmpc", 1400, 1),
     ]
-    md = data_markdown(result)
+    md = typed.to_markdown()
     assert "| rkmpc | 350 |" in md and "| kmpc | 1400 |" in md
-    fig = plot_data_study(result)
+    fig = plot_data_study(typed.series(), typed.baseline.lateral_error_mean_m, "data")
     assert isinstance(fig, Figure) and len(fig.axes) == 2
 
 
@@ -124,42 +124,16 @@ def test_study_data_tiny_sizes_in_parallel():
 # aggregation on hand-made rows
 
 
-def test_stats_and_change():
-    s = stats([1.0, 2.0, None, float("nan"), 6.0])
-    assert s == {"n": 3, "mean": 3.0, "std": pytest.approx(math.sqrt(7.0)), "min": 1.0, "max": 6.0}
-    assert stats([2.0])["std"] is None
-    assert stats([]) == {"n": 0, "mean": None, "std": None, "min": None, "max": None}
-    assert change_pct(0.8, 1.0) == pytest.approx(-20.0)
-    assert change_pct(1.0, 0.0) is None and change_pct(None, 1.0) is None
-
-
 def test_aggregate_tracks_by_hand():
     jobs = [
-        {
-            "track": "a",
-            "seed": 0,
-            "ok": True,
-            "error": None,
-            "controllers": {"lmpc": _metrics(0.02), "rkmpc": _metrics(0.01)},
-        },
-        {
-            "track": "b",
-            "seed": 0,
-            "ok": True,
-            "error": None,
-            "controllers": {"lmpc": _metrics(0.04), "rkmpc": _metrics(0.05)},
-        },
-        {
-            "track": "c",
-            "seed": 0,
-            "ok": True,
-            "error": None,
-            "controllers": {"lmpc": _metrics(0.03), "rkmpc": _metrics(0.5, completed=False, progress=0.4)},
-        },
-        {"track": "d", "seed": 0, "ok": True, "error": None, "controllers": {"lmpc": _metrics(0.03)}},
-        {"track": "e", "seed": 0, "ok": False, "error": "InputFileError: bad CSV", "controllers": {}},
+        RunGroup("a", 0, True, None, {"lmpc": _metrics(0.02), "rkmpc": _metrics(0.01)}),
+        RunGroup("b", 0, True, None, {"lmpc": _metrics(0.04), "rkmpc": _metrics(0.05)}),
+        RunGroup("c", 0, True, None, {"lmpc": _metrics(0.03), "rkmpc": _metrics(0.5, False, progress=0.4)}),
+        RunGroup("d", 0, True, None, {"lmpc": _metrics(0.03)}),
+        RunGroup("e", 0, False, "InputFileError: bad CSV", {}),
     ]
-    agg = aggregate_tracks(jobs, ["lmpc", "rkmpc"], "lmpc")
+    summary, run_rows = summarise_runs(jobs, ["lmpc", "rkmpc"], "lmpc")
+    agg = {"summary": {k: s.to_json() for k, s in summary.items()}, "rows": [r.to_json() for r in run_rows]}
     rk = agg["summary"]["rkmpc"]
     assert (rk["jobs"], rk["runs"], rk["completed"], rk["failed_jobs"], rk["missing"]) == (5, 3, 2, 1, 1)
     lat = rk["metrics"]["lateral_error_mean_m"]  # completed laps only: 0.01, 0.05
@@ -186,19 +160,14 @@ def test_aggregate_tracks_by_hand():
         ("a", "rkmpc"),
         ("b", "lmpc"),
     ]
-    result = {
-        "tracks": list("abcde"),
-        "seeds": [0],
-        "controllers": ["lmpc", "rkmpc"],
-        "baseline": "lmpc",
-        **agg,
-    }
-    md = tracks_markdown(to_json_ready(result))
+    cfg = TracksStudyConfig(tracks=("builtin",), controllers=("lmpc", "rkmpc"))
+    result = TracksStudyResult(cfg, {}, versions(), 0.0, summary, run_rows, [])
+    md = tracks_markdown(result)
     assert "| rkmpc | 2/5 | 1 |" in md
     assert "FAILED: InputFileError: bad CSV" in md and "NO 40%" in md
     assert "| d | 0 | rkmpc | not driven |" in md
-    no_base = aggregate_tracks(jobs, ["rkmpc"], None)
-    assert no_base["summary"]["rkmpc"]["change_pct"] == {}
+    no_base, _ = summarise_runs(jobs, ["rkmpc"], None)
+    assert no_base["rkmpc"].change_pct == {}
 
 
 def test_aggregate_data_by_hand():
@@ -225,7 +194,8 @@ def test_aggregate_data_by_hand():
         job("kmpc", 1000, 2, 0.3),
         job("rkmpc", 500, 0, 0.05),
     ]
-    summary = aggregate_data(jobs)
+    typed = summarise_sizes(jobs)
+    summary = [asdict(s) for s in typed]
     keys = [(s["controller"], s["size"]) for s in summary]
     assert keys == [("rkmpc", 500), ("rkmpc", 1000), ("kmpc", 1000)]
     rk = summary[1]
@@ -238,20 +208,16 @@ def test_aggregate_data_by_hand():
     assert (km["jobs"], km["completed"], km["failed_jobs"]) == (3, 2, 1)
     assert km["completion_rate"] == pytest.approx(2 / 3)  # the failed job counts as not completed
     assert km["lateral_error_mean_m"]["n"] == 2 and km["progress"]["n"] == 2
-    result = to_json_ready(
-        {
-            "track": "builtin",
-            "seeds": [0, 1, 2],
-            "summary": summary,
-            "jobs": [{**j, "error": "RuntimeError: boom"} if not j["ok"] else j for j in jobs],
-        }
-    )
-    json.dumps(result, allow_nan=False)
-    md = data_markdown(result)
+    failed = [{**j, "error": "RuntimeError: boom"} if not j["ok"] else j for j in jobs]
+    cfg = DataStudyConfig(seeds=(0, 1, 2))
+    baseline = LapMetrics.from_json(_metrics(0.04))
+    result = DataStudyResult(cfg, {}, versions(), 0.0, baseline, typed, failed)
+    json.dumps(result.to_json(), allow_nan=False)
+    md = result.to_markdown()
     assert "| kmpc | 1000 | 1003 | 333 | 2/3 (1 failed) |" in md
     assert "- kmpc 1000 seed 0: RuntimeError: boom" in md
 
-    fig = plot_data_study(result)
+    fig = plot_data_study(result.series(), None, "data")
     ax_err, ax_done = fig.axes
     assert ax_err.get_xscale() == "log" and ax_done.get_xscale() == "log"
     assert len(ax_err.containers) == 2 and len(ax_done.lines) == 2  # error bars of both controllers
@@ -261,12 +227,6 @@ def test_aggregate_data_by_hand():
     np.testing.assert_allclose(ax_done.lines[0].get_ydata(), [1.0, 2 / 3])
     np.testing.assert_allclose(err_lines[0].get_ydata(), [0.05, 0.03])
     np.testing.assert_allclose(err_lines[1].get_xdata(), [1003.0])
-
-
-def test_to_json_ready_makes_strict_json():
-    out = to_json_ready({"a": np.float64("nan"), "b": np.arange(3), "c": (1, np.int64(2)), 3: np.bool_(True)})
-    assert out == {"a": None, "b": [0, 1, 2], "c": [1, 2], "3": True}
-    json.dumps(out, allow_nan=False)
 
 
 # ---------------------------------------------------------------------------
@@ -302,8 +262,7 @@ def test_configs_validate(tmp_path):
         ({"controllers": ("lmpc",)}, "controllers"),
         ({"rkmpc_max_ratio": 1.5}, "rkmpc_max_ratio"),
         ({"min_laps": 3, "max_laps": 2}, "min_laps"),
-        ({"model_options": {"seed": 1}}, "model_options"),
-        ({"model_options": {"warp": 1}}, "model_options"),
+        ({"epochs": 0}, "epochs"),
         ({"track": "moon"}, "neither a built-in"),
     ]
     for kwargs, match in bad_data:

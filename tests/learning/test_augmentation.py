@@ -3,14 +3,14 @@ import math
 import numpy as np
 import pytest
 
-from rkmpc.errors import ParameterError
-from rkmpc.learning.augmentation import (
+from rkmpc.core.errors import ParameterError
+from rkmpc.learning.data.augmentation import (
     AugmentConfig,
     local_frame_windows,
     to_local_frame,
     valid_origins,
 )
-from rkmpc.learning.dataset import TransitionDataset
+from rkmpc.learning.data.dataset import TransitionDataset
 from rkmpc.vehicle.kinematic import kinematic_step
 
 WHEELBASE = 0.307

@@ -4,11 +4,12 @@ import zipfile
 import numpy as np
 import pytest
 
-from rkmpc.errors import InputFileError, ParameterError
-from rkmpc.experiments.runner import RunSpec, run_controller
-from rkmpc.learning.collect import collect
-from rkmpc.learning.dataset import FORMAT_VERSION, TransitionDataset
+from rkmpc.core.errors import InputFileError, ParameterError
+from rkmpc.experiments.runs import run_controller
+from rkmpc.learning.data.dataset import FORMAT_VERSION, TransitionDataset
+from rkmpc.sim.collect import collect
 from rkmpc.sim.log import StepLog
+from rkmpc.sim.run import RunSpec
 
 DT = 0.05
 

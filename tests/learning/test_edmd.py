@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rkmpc.errors import ParameterError
-from rkmpc.learning.edmd import fit_dynamics, fit_output, ridge_lstsq
-from rkmpc.learning.koopman import KoopmanModel
-from rkmpc.learning.lifting import RBFLifting
+from rkmpc.core.errors import ParameterError
+from rkmpc.learning.koopman.edmd import fit_dynamics, fit_output, ridge_lstsq
+from rkmpc.learning.koopman.lifting import RBFLifting
+from rkmpc.learning.koopman.model import KoopmanModel
 
 
 def _linear_system(seed: int = 0, nx: int = 4, nu: int = 2, n_traj: int = 20, steps: int = 30):
@@ -53,7 +53,7 @@ def test_state_rows_are_exact_with_extra_features():
 
 def test_rbf_dictionary_on_a_linear_system_predicts_the_state_exactly():
     A, B, X, U, Xn = _linear_system(seed=2)
-    model = KoopmanModel(lifting="rbf", n_centers=15, ridge=0.0).fit(X, U, Xn)
+    model = KoopmanModel(RBFLifting(n_centers=15), ridge=0.0).fit(X, U, Xn)
     assert model.n_lifted_ == 4 + 15
     assert isinstance(model.lifting_, RBFLifting)
     # One step.
@@ -101,7 +101,7 @@ def test_ridge_matches_the_normal_equations_and_shrinks():
 def test_torch_ridge_solve_agrees_with_numpy():
     import torch
 
-    from rkmpc.learning.training import ridge_solve
+    from rkmpc.learning.koopman.training import ridge_solve
 
     rng = np.random.default_rng(2)
     Phi, T = rng.normal(size=(80, 5)), rng.normal(size=(80, 3))

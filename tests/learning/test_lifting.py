@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rkmpc.errors import ParameterError
-from rkmpc.learning.lifting import MLPLifting, RBFLifting, standardisation
+from rkmpc.core.errors import ParameterError
+from rkmpc.learning.koopman.lifting import MLPLifting, RBFLifting, lifting_from_params, standardisation
 
 
 @pytest.fixture
@@ -21,30 +21,30 @@ def states() -> np.ndarray:
 @pytest.mark.parametrize("kind", ["thin_plate", "gaussian"])
 @pytest.mark.parametrize("method", ["kmeans++", "random"])
 def test_rbf_shapes_and_single_vector(states, kind, method):
-    lift = RBFLifting.from_data(states, n_centers=20, seed=1, kind=kind, method=method)
+    lift = RBFLifting(n_centers=20, seed=1, kind=kind, method=method).fit(states)
     Z = lift(states)
     assert Z.shape == (400, 20)
     assert np.all(np.isfinite(Z))
     z = lift(states[7])
     assert z.shape == (20,)
     np.testing.assert_allclose(z, Z[7], rtol=1e-12, atol=1e-12)
-    assert lift.centers.shape == (20, 3) and lift.n_lift == 20 and lift.nx == 3
+    assert lift.centers_.shape == (20, 3) and lift.n_lift == 20 and lift.nx_ == 3
 
 
 def test_rbf_is_seeded(states):
-    a = RBFLifting.from_data(states, 16, seed=5)
-    b = RBFLifting.from_data(states, 16, seed=5)
-    c = RBFLifting.from_data(states, 16, seed=6)
-    np.testing.assert_array_equal(a.centers, b.centers)
+    a = RBFLifting(16, seed=5).fit(states)
+    b = RBFLifting(16, seed=5).fit(states)
+    c = RBFLifting(16, seed=6).fit(states)
+    np.testing.assert_array_equal(a.centers_, b.centers_)
     np.testing.assert_array_equal(a(states), b(states))
-    assert not np.array_equal(a.centers, c.centers)
+    assert not np.array_equal(a.centers_, c.centers_)
 
 
 def test_rbf_centres_are_standardised_samples(states):
-    lift = RBFLifting.from_data(states, 10, seed=0, method="random")
+    lift = RBFLifting(10, seed=0, method="random").fit(states)
     mean, std = standardisation(states)
     scaled = (states - mean) / std
-    for centre in lift.centers:
+    for centre in lift.centers_:
         assert np.min(np.linalg.norm(scaled - centre, axis=1)) < 1e-12
 
 
@@ -53,26 +53,28 @@ def test_rbf_values_match_definition():
     mean, std = np.array([1.0, -1.0]), np.array([2.0, 0.5])
     x = np.array([3.0, 0.0])  # standardised: (1, 2) -> on the second centre
     s = (x - mean) / std
-    thin = RBFLifting(centers, width=2.0, kind="thin_plate", mean=mean, std=std)
+    thin = RBFLifting(kind="thin_plate").set_centers(centers, 2.0, mean=mean, std=std)
     r0 = np.linalg.norm(s) / 2.0
     np.testing.assert_allclose(thin(x), [r0**2 * np.log(r0), 0.0], atol=1e-12)
-    gauss = RBFLifting(centers, width=2.0, kind="gaussian", mean=mean, std=std)
+    gauss = RBFLifting(kind="gaussian").set_centers(centers, 2.0, mean=mean, std=std)
     np.testing.assert_allclose(gauss(x), [np.exp(-(r0**2)), 1.0], atol=1e-12)
 
 
 def test_rbf_arrays_round_trip(states):
-    lift = RBFLifting.from_data(states, 12, seed=2, kind="gaussian")
+    lift = RBFLifting(12, seed=2, kind="gaussian").fit(states)
     again = RBFLifting.from_arrays(lift.to_arrays())
-    assert again.kind == "gaussian" and again.width == lift.width
+    assert again.kind == "gaussian" and again.width_ == lift.width_
     np.testing.assert_array_equal(again(states), lift(states))
 
 
 def test_rbf_rejects_bad_input(states):
     with pytest.raises(ParameterError, match="kind"):
-        RBFLifting(np.zeros((2, 3)), kind="cubic")
+        RBFLifting(kind="cubic").fit(states)
     with pytest.raises(ParameterError, match="n_centers"):
-        RBFLifting.from_data(states, 401)
-    lift = RBFLifting.from_data(states, 4)
+        RBFLifting(401).fit(states)
+    with pytest.raises(RuntimeError, match="not fitted"):
+        RBFLifting(4)(states)
+    lift = RBFLifting(4).fit(states)
     with pytest.raises(ParameterError, match="shape"):
         lift(np.zeros((5, 2)))
 
@@ -93,7 +95,7 @@ def _perturb(net, seed: int) -> None:
 def test_numpy_copy_matches_torch(states):
     import torch
 
-    from rkmpc.learning.lifting import export_mlp, make_torch_mlp
+    from rkmpc.learning.koopman.training import make_torch_mlp, network_arrays
 
     mean, std = standardisation(states)
     scaled = (states - mean) / std
@@ -102,7 +104,7 @@ def test_numpy_copy_matches_torch(states):
         _perturb(net, 1)
         with torch.no_grad():
             expected = net(torch.as_tensor(scaled, dtype=dtype)).double().numpy()
-        lift = export_mlp(net, mean, std)
+        lift = MLPLifting().set_network(*network_arrays(net), mean, std)
         got = lift(states)
         assert got.shape == (400, 16)
         # float32 torch rounds at ~6e-8 relative per operation; float64 agrees to rounding.
@@ -111,10 +113,10 @@ def test_numpy_copy_matches_torch(states):
 
 
 def test_mlp_arrays_round_trip(states):
-    from rkmpc.learning.lifting import export_mlp, make_torch_mlp
+    from rkmpc.learning.koopman.training import make_torch_mlp, network_arrays
 
     mean, std = standardisation(states)
-    lift = export_mlp(make_torch_mlp(3, (8, 5), 4, seed=0), mean, std)
+    lift = MLPLifting().set_network(*network_arrays(make_torch_mlp(3, (8, 5), 4, seed=0)), mean, std)
     assert lift.hidden == (8, 5) and lift.n_lift == 4
     arrays = lift.to_arrays()
     assert set(arrays) == {"mean", "std", "W0", "W1", "W2", "b0", "b1", "b2"}
@@ -125,7 +127,7 @@ def test_mlp_arrays_round_trip(states):
 def test_make_torch_mlp_is_seeded_and_leaves_global_rng_alone():
     import torch
 
-    from rkmpc.learning.lifting import make_torch_mlp
+    from rkmpc.learning.koopman.training import make_torch_mlp
 
     torch.manual_seed(123)
     before = torch.rand(3)
@@ -144,4 +146,25 @@ def test_mlp_rejects_layers_that_do_not_chain():
     w = [np.zeros((4, 2)), np.zeros((3, 5)), np.zeros((2, 3))]
     b = [np.zeros(4), np.zeros(3), np.zeros(2)]
     with pytest.raises(ParameterError, match="layer 1"):
-        MLPLifting(w, b, np.zeros(2), np.ones(2))
+        MLPLifting().set_network(w, b, np.zeros(2), np.ones(2))
+    with pytest.raises(RuntimeError, match="not fitted"):
+        MLPLifting()(np.zeros(2))
+
+
+@pytest.mark.parametrize(
+    "lifting",
+    [MLPLifting(n_lift=0), MLPLifting(hidden=(4,)), RBFLifting(n_centers=0), RBFLifting(method="grid")],
+)
+def test_liftings_reject_bad_settings(lifting):
+    with pytest.raises(ParameterError):
+        lifting.validate()
+
+
+@pytest.mark.parametrize("lifting", [MLPLifting(8, (5, 6)), RBFLifting(7, kind="gaussian", seed=3)])
+def test_settings_round_trip_through_params(lifting):
+    again = lifting_from_params(lifting.get_params())
+    assert type(again) is type(lifting)
+    assert again.get_params() == lifting.get_params()
+    assert lifting_from_params(None) is None
+    with pytest.raises(ParameterError, match="unknown lifting kind"):
+        lifting_from_params({"kind": "poly"})

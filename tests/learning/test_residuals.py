@@ -3,12 +3,12 @@ import math
 import numpy as np
 import pytest
 
-from rkmpc.control.base import Command
-from rkmpc.errors import ParameterError
-from rkmpc.learning.dataset import TransitionDataset
-from rkmpc.learning.residuals import control_residuals, kinematic_inverse
+from rkmpc.core.errors import ParameterError
+from rkmpc.core.observation import Command
+from rkmpc.learning.data.dataset import TransitionDataset
+from rkmpc.learning.data.residuals import control_residuals, kinematic_inverse
 from rkmpc.vehicle.kinematic import kinematic_step
-from rkmpc.vehicle.plant import make_plant
+from rkmpc.vehicle.registry import make_plant
 
 WHEELBASE = 0.307
 DT = 0.05

@@ -4,11 +4,12 @@ import numpy as np
 import pytest
 
 from rkmpc.analysis.metrics import METRIC_KEYS, lap_metrics
-from rkmpc.control.base import Command, Controller, Observation
-from rkmpc.errors import ParameterError
+from rkmpc.control.base import Controller
+from rkmpc.core.errors import ParameterError
+from rkmpc.core.observation import Command, Observation
 from rkmpc.sim.closed_loop import SimConfig, simulate
 from rkmpc.sim.log import StepLog
-from rkmpc.vehicle.plant import make_plant
+from rkmpc.vehicle.registry import make_plant
 
 
 class ConstantSteer(Controller):

@@ -7,7 +7,7 @@ from pathlib import Path as FilePath
 import numpy as np
 import pytest
 
-from rkmpc.errors import InputFileError, ParameterError
+from rkmpc.core.errors import InputFileError, ParameterError
 from rkmpc.track import find_self_intersection, load_centerline, load_raceline, load_track
 
 TRACKS_DIR = FilePath(__file__).resolve().parents[2].parent / "shared" / "tracks"

@@ -2,13 +2,12 @@
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
 
-from rkmpc.errors import ParameterError
+from rkmpc.core.errors import ParameterError
 from rkmpc.track import Path, wrap_angle
+from rkmpc.track.projection_reference import project_plain
 
 
 def circle(radius: float, n: int = 100, clockwise: bool = False) -> Path:
@@ -162,55 +161,6 @@ def test_explicit_window_must_be_positive(stadium: Path) -> None:
 
 
 # ---------------------------------------------------------------- fast path == plain implementation
-def plain_project(
-    path: Path, x: float, y: float, s_hint: float, window: float | None = None
-) -> tuple[float, ...]:
-    """The straightforward hinted projection (the implementation before the fast path)."""
-    n = path._n_tab
-    ds = path._tab_ds
-    w = path.default_window if window is None else window
-    half = max(math.ceil(w / ds), 2)
-    centre = round((s_hint % path.length) / ds) % n
-    best = centre
-    for _ in range(8):
-        lo = centre - half
-        hi = centre + half + 1
-        idx = np.arange(lo, hi) % n
-        ddx = path._tab_x[idx] - x
-        ddy = path._tab_y[idx] - y
-        j = int(np.argmin(ddx * ddx + ddy * ddy))
-        best = (lo + j) % n
-        if 0 < j < hi - lo - 1 or 2 * half + 1 >= n:
-            break
-        centre = best
-    i = best
-    xi, yi, th, k = path._lx[i], path._ly[i], path._lh[i], path._lk[i]
-    c, sn = math.cos(th), math.sin(th)
-    dx, dy = x - xi, y - yi
-    along = dx * c + dy * sn
-    lat = dy * c - dx * sn
-    d = min(max(along / max(1.0 - k * lat, 0.1), -ds), ds)
-    for final in (False, True):
-        th_d = th + k * d
-        half_k = 0.5 * k * d * d
-        px = xi + c * d - half_k * sn
-        py = yi + sn * d + half_k * c
-        cd, sd = math.cos(th_d), math.sin(th_d)
-        lat = (y - py) * cd - (x - px) * sd
-        if final:
-            break
-        along = (x - px) * cd + (y - py) * sd
-        d = min(max(d + along / max(1.0 - k * lat, 0.1), -ds), ds)
-    s = i * ds + d
-    if s < 0.0:
-        s += path.length
-    elif s >= path.length:
-        s -= path.length
-    if s >= path.length:
-        s = 0.0
-    return s, lat, float(wrap_angle(th_d))
-
-
 def random_queries(path: Path, rng: np.random.Generator, n: int) -> list[tuple[float, float, float]]:
     """Points near the path with hints near their arc length, many across s = 0, some far off."""
     length = path.length
@@ -227,8 +177,10 @@ def assert_projection_matches(
 ) -> None:
     for x, y, hint in queries:
         p = path.project(x, y, s_hint=hint, window=window)
-        s, lat, heading = plain_project(path, x, y, hint, window)
-        np.testing.assert_allclose([p.s, p.lateral, p.heading], [s, lat, heading], rtol=1e-12, atol=1e-12)
+        e = project_plain(path, x, y, hint, window)
+        np.testing.assert_allclose(
+            [p.s, p.lateral, p.heading], [e.s, e.lateral, e.heading], rtol=1e-12, atol=1e-12
+        )
 
 
 @pytest.mark.parametrize("window", [None, 0.3, 1e3])
@@ -249,8 +201,10 @@ def test_projection_survives_pickling_and_threads(stadium: Path) -> None:
 
     queries = random_queries(stadium, np.random.default_rng(5), 200)
     copy = pickle.loads(pickle.dumps(stadium))
-    expected = [plain_project(stadium, *q) for q in queries]
+    expected = [project_plain(stadium, *q) for q in queries]
     with ThreadPoolExecutor(4) as pool:
         got = list(pool.map(lambda q: copy.project(q[0], q[1], s_hint=q[2]), queries * 3))
     for p, e in zip(got, expected * 3, strict=True):
-        np.testing.assert_allclose([p.s, p.lateral, p.heading], e, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(
+            [p.s, p.lateral, p.heading], [e.s, e.lateral, e.heading], rtol=1e-12, atol=1e-12
+        )

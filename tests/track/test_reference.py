@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from rkmpc.errors import ParameterError
+from rkmpc.core.errors import ParameterError
 from rkmpc.track import Reference, SpeedLimits, builtin_track, speed_profile, wrap_angle
 
 WHEELBASE = 0.307
@@ -148,7 +148,7 @@ def test_horizon_fast_path_matches_plain(reference: Reference, n_steps: int, dt:
 
 
 def test_horizon_fast_path_matches_plain_on_a_long_track(shared_tracks) -> None:
-    from rkmpc.scenario import load_scenario
+    from rkmpc.sim.scenario import load_scenario
 
     ref = load_scenario(str(shared_tracks / "centerlines" / "Monza.csv")).reference
     rng = np.random.default_rng(1)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rkmpc.errors import ParameterError
+from rkmpc.core.errors import ParameterError
 from rkmpc.track import Path, Track
 
 

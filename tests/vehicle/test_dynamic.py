@@ -9,12 +9,12 @@ import numpy as np
 import pytest
 from scipy.optimize import fsolve
 
-from rkmpc.control.base import Command
-from rkmpc.errors import ParameterError
-from rkmpc.vehicle.dynamic import DynamicPlant
+from rkmpc.core.errors import ParameterError
+from rkmpc.core.observation import Command
+from rkmpc.vehicle.friction import CircularRegion, FrictionChange
 from rkmpc.vehicle.kinematic import kinematic_step
 from rkmpc.vehicle.params import VehicleParams, f1tenth
-from rkmpc.vehicle.plant import CircularRegion, FrictionChange
+from rkmpc.vehicle.plants.dynamic import DynamicPlant
 
 P = f1tenth()
 L = P.wheelbase

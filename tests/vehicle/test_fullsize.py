@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 from vehiclemodels.parameters_vehicle2 import parameters_vehicle2
 
-from rkmpc.control.base import Command
-from rkmpc.errors import ParameterError
-from rkmpc.vehicle.fullsize import FullSizePlant
+from rkmpc.core.errors import ParameterError
+from rkmpc.core.observation import Command
+from rkmpc.vehicle.friction import FrictionChange
 from rkmpc.vehicle.params import fullsize
-from rkmpc.vehicle.plant import FrictionChange
+from rkmpc.vehicle.plants.fullsize import FullSizePlant
 from rkmpc.vehicle.tyres import pacejka_lateral_force
 
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from rkmpc.errors import ParameterError
+from rkmpc.core.errors import ParameterError
 from rkmpc.vehicle.kinematic import kinematic_rhs, kinematic_step, linearize_discrete
 
 WHEELBASE = 0.307

@@ -8,21 +8,15 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from rkmpc.control.base import Command
-from rkmpc.errors import ParameterError
+from rkmpc.core.errors import ParameterError
+from rkmpc.core.observation import Command
 from rkmpc.track.path import Path
-from rkmpc.vehicle.dynamic import DynamicPlant
-from rkmpc.vehicle.fullsize import FullSizePlant
+from rkmpc.vehicle.friction import ArcWindowFriction, FrictionChange, FrictionProduct, combine_friction
 from rkmpc.vehicle.params import f1tenth
-from rkmpc.vehicle.plant import (
-    PLANTS,
-    ArcWindowFriction,
-    FrictionChange,
-    FrictionProduct,
-    Plant,
-    combine_friction,
-    make_plant,
-)
+from rkmpc.vehicle.plants.base import Plant
+from rkmpc.vehicle.plants.dynamic import DynamicPlant
+from rkmpc.vehicle.plants.fullsize import FullSizePlant
+from rkmpc.vehicle.registry import PLANTS, make_plant
 
 
 def test_registry_builds_known_plants() -> None:

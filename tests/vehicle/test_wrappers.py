@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rkmpc.control.base import Command
-from rkmpc.errors import ParameterError
-from rkmpc.vehicle.dynamic import DynamicPlant
-from rkmpc.vehicle.plant import Plant
+from rkmpc.core.errors import ParameterError
+from rkmpc.core.observation import Command
+from rkmpc.vehicle.plants.base import Plant
+from rkmpc.vehicle.plants.dynamic import DynamicPlant
 from rkmpc.vehicle.wrappers import CommandDelay, NoiseStd, ObservationNoise
 
 

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -28,8 +30,55 @@ METRIC_KEYS = (
 )
 
 
-def lap_metrics(result: SimResult, laps: int = 1) -> dict[str, Any]:
-    """Metrics of a run over its first ``laps`` laps (or as far as it got).
+@dataclass(frozen=True)
+class LapMetrics(Mapping[str, Any]):
+    """The metrics of one run (see :func:`lap_metrics`), typed; also a read-only mapping by key.
+
+    The fields are :data:`METRIC_KEYS`, in order; ``None`` where a metric is undefined (a lap
+    time of a lap not completed, errors of a run without steps).
+    """
+
+    completed: bool
+    progress: float
+    lap_time_s: float | None
+    lateral_error_mean_m: float | None
+    lateral_error_max_m: float | None
+    heading_error_mean_rad: float | None
+    steer_rate_mean_rad_s: float | None
+    solve_ms_mean: float | None
+    solve_ms_p99: float | None
+    solve_ms_max: float | None
+    fallback_count: int
+    steps: int
+    lateral_accel_max_m_s2: float | None
+
+    def __getitem__(self, key: str) -> Any:
+        if key not in METRIC_KEYS:
+            raise KeyError(key)
+        return getattr(self, key)
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(METRIC_KEYS)
+
+    def __len__(self) -> int:
+        return len(METRIC_KEYS)
+
+    def to_json(self) -> dict[str, Any]:
+        """The metrics as a plain dict, in :data:`METRIC_KEYS` order."""
+        return {key: getattr(self, key) for key in METRIC_KEYS}
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> LapMetrics:
+        """Metrics read back from :meth:`to_json` output (extra keys are ignored)."""
+        return cls(**{key: data[key] for key in METRIC_KEYS})
+
+
+def lap_metrics(result: SimResult, laps: int = 1) -> LapMetrics:
+    """Metrics of a run: completion over the laps asked for, everything per step over the first lap.
+
+    The errors, the wheel-angle rate, the step times and the peak lateral
+    acceleration are taken over the steps of the first lap (or as far as the
+    run got); ``fallback_count`` and ``steps`` count the whole run.
 
     Parameters
     ----------
@@ -40,7 +89,7 @@ def lap_metrics(result: SimResult, laps: int = 1) -> dict[str, Any]:
 
     Returns
     -------
-    dict
+    LapMetrics
         ``completed`` (bool), ``progress`` (fraction of the requested laps,
         0-1), ``lap_time_s`` (first lap, s; None if not completed),
         ``lateral_error_mean_m`` and ``lateral_error_max_m`` (absolute offset
@@ -62,23 +111,23 @@ def lap_metrics(result: SimResult, laps: int = 1) -> dict[str, Any]:
     wheel = log["wheel_angle"][first_lap]
     dt = float(np.median(np.diff(t))) if n > 1 else math.nan
     steer_rate = np.abs(np.diff(wheel)) / dt if len(wheel) > 1 else np.array([math.nan])
-    solve_ms = 1e3 * log["solve_time_s"]
+    solve_ms = 1e3 * log["solve_time_s"][first_lap]
     solve_ms = solve_ms[np.isfinite(solve_ms)]
-    return {
-        "completed": bool(result.completed),
-        "progress": float(min(result.progress / laps, 1.0)),
-        "lap_time_s": float(result.lap_times[0]) if result.lap_times else None,
-        "lateral_error_mean_m": _mean(lat),
-        "lateral_error_max_m": float(lat.max()) if lat.size else None,
-        "heading_error_mean_rad": _mean(head),
-        "steer_rate_mean_rad_s": _mean(steer_rate),
-        "solve_ms_mean": _mean(solve_ms),
-        "solve_ms_p99": float(np.percentile(solve_ms, 99)) if solve_ms.size else None,
-        "solve_ms_max": float(solve_ms.max()) if solve_ms.size else None,
-        "fallback_count": int(result.fallback_count),
-        "steps": int(n),
-        "lateral_accel_max_m_s2": _peak_lateral_accel(log, first_lap),
-    }
+    return LapMetrics(
+        completed=bool(result.completed),
+        progress=float(min(result.progress / laps, 1.0)),
+        lap_time_s=float(result.lap_times[0]) if result.lap_times else None,
+        lateral_error_mean_m=_mean(lat),
+        lateral_error_max_m=float(lat.max()) if lat.size else None,
+        heading_error_mean_rad=_mean(head),
+        steer_rate_mean_rad_s=_mean(steer_rate),
+        solve_ms_mean=_mean(solve_ms),
+        solve_ms_p99=float(np.percentile(solve_ms, 99)) if solve_ms.size else None,
+        solve_ms_max=float(solve_ms.max()) if solve_ms.size else None,
+        fallback_count=int(result.fallback_count),
+        steps=int(n),
+        lateral_accel_max_m_s2=_peak_lateral_accel(log, first_lap),
+    )
 
 
 def _peak_lateral_accel(log: StepLog, rows: np.ndarray) -> float | None:

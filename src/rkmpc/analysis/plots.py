@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import os
-import tempfile
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -15,6 +13,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.figure import Figure
 
+from rkmpc.core.io import atomic_write
 from rkmpc.sim.log import StepLog
 from rkmpc.track.track import Track
 
@@ -167,15 +166,8 @@ def ref_start(track: Track) -> tuple[float, float]:
 
 def save_figure(fig: Figure, path: str | Path, dpi: int = 130) -> None:
     """Save a figure as PNG through a temporary file, then close it."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=".png")
-    os.close(fd)
     try:
-        fig.savefig(tmp, dpi=dpi)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+        with atomic_write(path, "wb", suffix=".png") as handle:
+            fig.savefig(handle, dpi=dpi, format="png")
     finally:
         plt.close(fig)

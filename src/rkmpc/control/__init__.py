@@ -1,9 +1,10 @@
 """Controllers behind one interface: observation in, command out."""
 
-from rkmpc.control.base import Command, Controller, Observation, StepInfo
-from rkmpc.control.factory import CONTROLLERS, make_controller, register_controller
-from rkmpc.control.lmpc import LinearMPC, LMPCConfig
+from rkmpc.control.base import Controller, StepInfo
+from rkmpc.control.linear.lmpc import LinearMPC, LMPCConfig
 from rkmpc.control.pure_pursuit import PurePursuit, PurePursuitConfig
+from rkmpc.control.registry import CONTROLLERS, make_controller, register_controller
+from rkmpc.core.observation import Command, Observation
 
 __all__ = [
     "CONTROLLERS",

@@ -7,77 +7,11 @@ and :meth:`Controller.step` once per control period.
 
 from __future__ import annotations
 
-import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from time import perf_counter
 
-import numpy as np
-
-#: Names of the columns of :meth:`Observation.as_array`.
-OBSERVATION_FIELDS: tuple[str, ...] = (
-    "x",
-    "y",
-    "yaw",
-    "speed",
-    "yaw_rate",
-    "slip_angle",
-    "steer_angle",
-)
-
-
-@dataclass(frozen=True)
-class Observation:
-    """What the car's localisation reports at one control instant (SI units).
-
-    Parameters
-    ----------
-    x, y : float
-        Position of the centre of gravity in the track frame (m).
-    yaw : float
-        Heading (rad), any branch; controllers wrap it themselves.
-    speed : float
-        Speed along the heading (m/s).
-    yaw_rate : float, optional
-        Yaw rate (rad/s); NaN when not measured.
-    slip_angle : float, optional
-        Side-slip angle at the centre of gravity (rad); NaN when not measured.
-    steer_angle : float, optional
-        Measured front wheel angle (rad); NaN when not measured.
-    time : float, optional
-        Time stamp (s).
-    """
-
-    x: float
-    y: float
-    yaw: float
-    speed: float
-    yaw_rate: float = math.nan
-    slip_angle: float = math.nan
-    steer_angle: float = math.nan
-    time: float = 0.0
-
-    def as_array(self) -> np.ndarray:
-        """``[x, y, yaw, speed, yaw_rate, slip_angle, steer_angle]`` as a float array."""
-        return np.array(
-            [self.x, self.y, self.yaw, self.speed, self.yaw_rate, self.slip_angle, self.steer_angle]
-        )
-
-
-@dataclass(frozen=True)
-class Command:
-    """What a controller asks of the car for one control period.
-
-    Parameters
-    ----------
-    speed : float
-        Speed set-point (m/s).
-    steer : float
-        Front wheel angle set-point (rad), positive to the left.
-    """
-
-    speed: float
-    steer: float
+from rkmpc.core.observation import Command, Observation
 
 
 @dataclass

@@ -6,8 +6,9 @@ import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from rkmpc.control.base import Command, Controller, Observation
-from rkmpc.errors import ParameterError
+from rkmpc.control.base import Controller
+from rkmpc.core.errors import ParameterError
+from rkmpc.core.observation import Command, Observation
 from rkmpc.vehicle.params import VehicleParams
 
 if TYPE_CHECKING:

@@ -1,0 +1,1 @@
+"""Experiments: typed results, the one-track comparison, the model cache, parallel studies."""

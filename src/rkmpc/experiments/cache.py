@@ -3,9 +3,9 @@
 Training a model is the slow part of an experiment (the KMPC model needs tens
 of thousands of random-excitation samples and up to a minute of training), and
 it depends only on what went into it. Each cached model is stored under the
-SHA-256 hash of a JSON *recipe*: everything that determines the model (data
+SHA-256 hash of a JSON *spec*: everything that determines the model (data
 hash or data-generation settings, training settings, vehicle parameters,
-package version). A changed recipe gives a new key, so a stale model is never
+package version). A changed spec gives a new key, so a stale model is never
 reused; an unreadable cache file is trained again and replaced.
 
 The cache folder is, in this order: the ``directory`` given, the environment
@@ -22,9 +22,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from rkmpc.errors import InputFileError
-from rkmpc.learning.koopman import KoopmanModel
-from rkmpc.sim.log import json_default, write_json_atomic
+from rkmpc.core.errors import InputFileError
+from rkmpc.core.io import write_json_atomic
+from rkmpc.core.jsonutil import json_default
+from rkmpc.learning.koopman.model import KoopmanModel
 
 
 def default_cache_dir() -> Path:
@@ -37,9 +38,9 @@ def default_cache_dir() -> Path:
     return base / "rkmpc"
 
 
-def recipe_key(recipe: Mapping[str, Any]) -> str:
-    """SHA-256 hex digest of a recipe's canonical JSON (sorted keys)."""
-    text = json.dumps(recipe, sort_keys=True, default=json_default, separators=(",", ":"))
+def spec_key(spec: Mapping[str, Any]) -> str:
+    """SHA-256 hex digest of a spec's canonical JSON (sorted keys)."""
+    text = json.dumps(spec, sort_keys=True, default=json_default, separators=(",", ":"))
     return hashlib.sha256(text.encode()).hexdigest()
 
 
@@ -50,7 +51,7 @@ class CacheHit:
     Parameters
     ----------
     key : str
-        Recipe hash.
+        Spec hash.
     path : Path
         Model file.
     hit : bool
@@ -67,7 +68,7 @@ class CacheHit:
 
 
 class ModelCache:
-    """Trained models by recipe hash.
+    """Trained models by spec hash.
 
     Parameters
     ----------
@@ -78,20 +79,20 @@ class ModelCache:
     def __init__(self, directory: str | Path | None = None) -> None:
         self.directory = Path(directory) if directory is not None else default_cache_dir()
 
-    def path_for(self, recipe: Mapping[str, Any]) -> Path:
-        """File the model of ``recipe`` is (or would be) stored in."""
-        return self.directory / f"{recipe.get('name', 'model')}-{recipe_key(recipe)[:20]}.rkm"
+    def path_for(self, spec: Mapping[str, Any]) -> Path:
+        """File the model of ``spec`` is (or would be) stored in."""
+        return self.directory / f"{spec['name'] if 'name' in spec else 'model'}-{spec_key(spec)[:20]}.rkm"
 
     def get_or_build(
         self,
-        recipe: Mapping[str, Any],
+        spec: Mapping[str, Any],
         build: Callable[[], tuple[KoopmanModel, dict[str, Any]]],
     ) -> tuple[KoopmanModel, CacheHit]:
-        """The cached model of ``recipe``, or ``build()``'s, which is then stored.
+        """The cached model of ``spec``, or ``build()``'s, which is then stored.
 
         Parameters
         ----------
-        recipe : mapping
+        spec : mapping
             JSON-serialisable description of everything that determines the
             model; its optional ``name`` prefixes the file name.
         build : callable
@@ -103,19 +104,23 @@ class ModelCache:
         model : KoopmanModel
         hit : CacheHit
         """
-        key = recipe_key(recipe)
-        path = self.path_for(recipe)
+        key = spec_key(spec)
+        path = self.path_for(spec)
         info_path = path.with_suffix(".json")
         if path.exists() and info_path.exists():
             try:
                 model = KoopmanModel.load(path)
                 stored = json.loads(info_path.read_text())
-                if stored.get("key") == key:
-                    return model, CacheHit(key, path, True, dict(stored.get("info", {})))
+                if (
+                    isinstance(stored, dict)
+                    and stored.get("key") == key
+                    and isinstance(stored.get("info"), dict)
+                ):
+                    return model, CacheHit(key, path, True, dict(stored["info"]))
             except (InputFileError, OSError, ValueError):
                 pass  # unreadable or foreign: train again and overwrite
         model, info = build()
         self.directory.mkdir(parents=True, exist_ok=True)
-        model.save(path, metadata={**model.metadata_, "cache_recipe": dict(recipe)})
-        write_json_atomic(info_path, {"key": key, "recipe": dict(recipe), "info": info})
+        model.save(path, metadata={**model.metadata_, "cache_spec": dict(spec)})
+        write_json_atomic(info_path, {"key": key, "spec": dict(spec), "info": info})
         return model, CacheHit(key, path, False, info)

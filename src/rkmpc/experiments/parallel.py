@@ -1,6 +1,6 @@
 """Run independent jobs in parallel: local processes, a Dask cluster or a Ray cluster.
 
-Every study in :mod:`rkmpc.experiments.studies` is a list of independent
+Every study in :mod:`rkmpc.experiments.studies.tracks` is a list of independent
 jobs (one track, one seed, one data size...). :func:`run_jobs` runs such a
 list through :mod:`joblib`:
 
@@ -40,13 +40,13 @@ import os
 import sys
 import time
 import traceback
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 import joblib
 
-from rkmpc.errors import ParameterError, RkmpcError
+from rkmpc.core.errors import ParameterError, RkmpcError
 
 #: Backends :func:`run_jobs` accepts.
 BACKENDS = ("loky", "dask", "ray")
@@ -238,54 +238,12 @@ def run_jobs(
         return []
     single_thread = not (backend == "loky" and n_jobs == 1)
     outcomes: list[JobOutcome | None] = [None] * total
-    config: dict[str, Any] = {"backend": backend, "n_jobs": n_jobs}
-    started_ray = False
-    if backend == "loky":
-        config["inner_max_num_threads"] = 1
-    elif backend == "dask":
-        try:
-            import distributed
-        except ImportError as exc:
-            raise ImportError(
-                "backend 'dask' needs dask and distributed: pip install 'rkmpc[cluster]'"
-            ) from exc
-        if address is not None:
-            config["scheduler_host"] = address
-        else:
-            try:
-                distributed.get_client()
-            except ValueError:
-                raise ParameterError(
-                    "backend 'dask' without an address needs a dask.distributed.Client started in "
-                    "this process (Client(...) or Client(LocalCluster(...))), or address='tcp://...'"
-                ) from None
-    else:
-        try:
-            import ray
-            from ray.util.joblib import register_ray
-        except ImportError as exc:
-            raise ImportError("backend 'ray' needs ray: pip install 'rkmpc[cluster]'") from exc
-        register_ray()
-        if not ray.is_initialized():
-            ray.init(address=address)
-            started_ray = True
-    unordered = backend != "ray"
+    config, started_ray = _backend_config(backend, n_jobs, address)
     calls = (joblib.delayed(_run_one)(i, job, single_thread) for i, job in enumerate(jobs))
     done = 0
     try:
         with joblib.parallel_config(**config):
-            parallel = joblib.Parallel(return_as="generator_unordered" if unordered else "list")
-            try:
-                results = iter(parallel(calls))
-            except Exception as exc:
-                raise JobError(None, f"{type(exc).__name__}: {exc}") from exc
-            while True:
-                try:
-                    outcome = next(results)
-                except StopIteration:
-                    break
-                except Exception as exc:  # a worker died, or the backend failed
-                    raise JobError(None, f"{type(exc).__name__}: {exc}") from exc
+            for outcome in _results(calls, unordered=backend != "ray"):
                 outcomes[outcome.index] = outcome
                 done += 1
                 if progress is not None:
@@ -301,3 +259,55 @@ def run_jobs(
     if missing:
         raise JobError(missing[0], "no result came back from the backend")
     return [o for o in outcomes if o is not None]
+
+
+def _backend_config(backend: str, n_jobs: int, address: str | None) -> tuple[dict[str, Any], bool]:
+    """joblib's ``parallel_config`` for the backend, and whether Ray was started here."""
+    config: dict[str, Any] = {"backend": backend, "n_jobs": n_jobs}
+    if backend == "loky":
+        config["inner_max_num_threads"] = 1
+        return config, False
+    if backend == "dask":
+        try:
+            import distributed
+        except ImportError as exc:
+            raise ImportError(
+                "backend 'dask' needs dask and distributed: pip install 'rkmpc[cluster]'"
+            ) from exc
+        if address is not None:
+            config["scheduler_host"] = address
+            return config, False
+        try:
+            distributed.get_client()
+        except ValueError:
+            raise ParameterError(
+                "backend 'dask' without an address needs a dask.distributed.Client started in "
+                "this process (Client(...) or Client(LocalCluster(...))), or address='tcp://...'"
+            ) from None
+        return config, False
+    try:
+        import ray
+        from ray.util.joblib import register_ray
+    except ImportError as exc:
+        raise ImportError("backend 'ray' needs ray: pip install 'rkmpc[cluster]'") from exc
+    register_ray()
+    if ray.is_initialized():
+        return config, False
+    ray.init(address=address)
+    return config, True
+
+
+def _results(calls: Iterable[Any], *, unordered: bool) -> Iterator[JobOutcome]:
+    """Outcomes as the backend hands them back; a failing backend or worker is a :class:`JobError`."""
+    parallel = joblib.Parallel(return_as="generator_unordered" if unordered else "list")
+    try:
+        results = iter(parallel(calls))
+    except Exception as exc:
+        raise JobError(None, f"{type(exc).__name__}: {exc}") from exc
+    while True:
+        try:
+            yield next(results)
+        except StopIteration:
+            return
+        except Exception as exc:  # a worker died, or the backend failed
+            raise JobError(None, f"{type(exc).__name__}: {exc}") from exc

@@ -1,0 +1,1 @@
+"""Learning: data sets, feature maps, recipes, Koopman models and physical identification."""

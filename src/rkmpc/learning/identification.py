@@ -13,10 +13,11 @@ from typing import Protocol
 
 import numpy as np
 
-from rkmpc.errors import ParameterError
+from rkmpc.core.errors import ParameterError
+from rkmpc.core.observation import OBSERVATION_FIELDS
 
-#: Columns of the observation arrays (see ``rkmpc.control.base.OBSERVATION_FIELDS``).
-_SPEED, _YAW_RATE, _STEER = 3, 4, 6
+#: Columns of the observation arrays.
+_SPEED, _YAW_RATE, _STEER = (OBSERVATION_FIELDS.index(n) for n in ("speed", "yaw_rate", "steer_angle"))
 
 
 class _Transitions(Protocol):

@@ -1,14 +1,14 @@
-"""From on-track data to a saved model: the three learned models of the project.
+"""From data to a fitted Koopman model, following a recipe (:mod:`rkmpc.learning.recipes`).
 
-``residual`` (default RKMPC): features ``[speed, yaw_rate, steer_angle]``, input
-the applied command, output the nominal kinematic input ``U_p`` of each
-transition (:func:`rkmpc.learning.residuals.control_residuals`).
+``residual`` (default RKMPC): features :data:`~rkmpc.learning.features.RESIDUAL_STATE`, input the
+applied command, output the nominal kinematic input ``U_p`` of each transition
+(:func:`rkmpc.learning.data.residuals.control_residuals`).
 
-``paper`` (literal RKMPC): the pose in the local frame of each augmentation
-window, input the control residual ``dU``.
+``paper`` (literal RKMPC): the pose in the local frame of each augmentation window, input the control
+residual ``dU``.
 
-``koopman`` (KMPC): ``[x, y, yaw]`` in the window's frame plus speed, yaw rate
-and wheel angle, input the command; trained on random-excitation data.
+``koopman`` (KMPC): ``[x, y, yaw]`` in the window's frame plus speed, yaw rate and wheel angle, input
+the command; trained on random-excitation data.
 """
 
 from __future__ import annotations
@@ -16,57 +16,58 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
-from typing import Any
 
 import numpy as np
 
-from rkmpc import __version__
-from rkmpc.errors import ParameterError
-from rkmpc.learning.augmentation import AugmentConfig, LocalWindows, local_frame_windows
-from rkmpc.learning.dataset import TransitionDataset
-from rkmpc.learning.koopman import KoopmanModel
-from rkmpc.learning.residuals import control_residuals
+from rkmpc.core.errors import ParameterError
+from rkmpc.core.versions import RKMPC_VERSION
+from rkmpc.learning.data.augmentation import AugmentConfig, LocalWindows, local_frame_windows
+from rkmpc.learning.data.dataset import TransitionDataset
+from rkmpc.learning.data.residuals import control_residuals
+from rkmpc.learning.features import FeatureMap
+from rkmpc.learning.koopman.model import KoopmanModel
+from rkmpc.learning.recipes import model_kinds, recipe_of_kind
 
-#: Observation columns: x, y, yaw, speed, yaw_rate, slip_angle, steer_angle.
-_POSE = [0, 1, 2]
-_RESIDUAL = [3, 4, 6]
-_KOOPMAN = [0, 1, 2, 3, 4, 6]
-
-#: Model kinds and what their state features are.
-MODEL_KINDS = {
-    "residual": "speed, yaw_rate, steer_angle -> U_p (input: command)",
-    "paper": "local x, y, yaw (input: control residual dU)",
-    "koopman": "local x, y, yaw, speed, yaw_rate, steer_angle (input: command)",
-}
+__all__ = ["TrainConfig", "TrainReport", "train_model", "training_arrays"]
 
 
 @dataclass(frozen=True)
 class TrainConfig:
-    """How a model is trained.
+    """How a Koopman model is trained.
 
     Parameters
     ----------
     kind : str
-        One of :data:`MODEL_KINDS`.
+        Model kind of a recipe whose learner is ``"koopman"`` (``residual``, ``paper``, ``koopman``).
     augment : AugmentConfig
         Local-frame windows (ratio, N_p, seed).
-    model : dict
-        Keyword arguments of :class:`rkmpc.learning.koopman.KoopmanModel`.
+    model : KoopmanModel or None
+        The unfitted model (lifting and training settings); None for the recipe's default with the
+        augmentation's seed (:meth:`rkmpc.learning.recipes.Recipe.default_model`).
     holdout : float
-        Fraction of windows (the latest in time) kept out of training for the
-        multi-step error report.
+        Fraction of windows (the latest in time) kept out of training for the multi-step error report.
     """
 
     kind: str = "residual"
     augment: AugmentConfig = field(default_factory=AugmentConfig)
-    model: dict[str, Any] = field(default_factory=dict)
+    model: KoopmanModel | None = None
     holdout: float = 0.2
 
     def __post_init__(self) -> None:
-        if self.kind not in MODEL_KINDS:
-            raise ParameterError(f"TrainConfig.kind must be one of {sorted(MODEL_KINDS)}, got {self.kind!r}")
+        recipe = recipe_of_kind(self.kind)
+        if recipe.learner != "koopman":
+            koopman = [k for k in model_kinds() if recipe_of_kind(k).learner == "koopman"]
+            raise ParameterError(f"TrainConfig.kind must be one of {koopman}, got {self.kind!r}")
         if not 0.0 <= self.holdout < 1.0:
             raise ParameterError(f"TrainConfig.holdout must be in [0, 1), got {self.holdout}")
+        if self.model is not None and not isinstance(self.model, KoopmanModel):
+            raise ParameterError(f"TrainConfig.model must be a KoopmanModel or None, got {self.model!r}")
+
+    def unfitted_model(self) -> KoopmanModel:
+        """The model to fit: :attr:`model`, or the recipe's default."""
+        if self.model is not None:
+            return self.model
+        return recipe_of_kind(self.kind).default_model(seed=self.augment.seed)
 
 
 @dataclass(frozen=True)
@@ -82,10 +83,10 @@ class TrainReport:
     train_windows, holdout_windows : int
         Windows used for training and for the held-out report.
     fit_time_s : float
-        Training wall time (s).
+        Training wall time (s), for reports only.
     multi_step_error : list of float
-        Held-out mean prediction error per horizon step (units of the
-        model's output: m for pose models, m/s and rad combined for ``residual``).
+        Held-out mean prediction error per horizon step (units of the model's output: m for pose
+        models, m/s and rad combined for ``residual``).
     """
 
     raw_count: int
@@ -96,10 +97,31 @@ class TrainReport:
     multi_step_error: list[float]
 
 
-def _window_arrays(windows: LocalWindows, columns: list[int], inputs: np.ndarray) -> tuple[np.ndarray, ...]:
-    """(Xw (M, Np+1, nx), Uw (M, Np, nu)) from windows."""
-    states = np.concatenate([windows.obs[:, :, columns], windows.next_obs[:, -1:, columns]], axis=1)
-    return states, inputs
+def _window_states(windows: LocalWindows, state: FeatureMap) -> np.ndarray:
+    """States ``x_0 .. x_Np`` of every window, shape (M, Np+1, nx)."""
+    return np.concatenate([state.of_array(windows.obs), state.of_array(windows.next_obs[:, -1:])], axis=1)
+
+
+def training_arrays(
+    data: TransitionDataset, wheelbase: float, kind: str, windows: LocalWindows
+) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """Window states (M, Np+1, nx), inputs (M, Np, nu) and outputs (M, Np, ny) or None of a recipe.
+
+    The states are the recipe's :class:`~rkmpc.learning.features.FeatureMap` of the window
+    observations: the same map feeds the controller on the car.
+    """
+    recipe = recipe_of_kind(kind)
+    if recipe.state is None:
+        raise ParameterError(f"the {kind!r} model has no state features: it is identified, not trained")
+    idx = windows.indices
+    needs_labels = recipe.model_input == "control_residual" or recipe.output == "nominal_input"
+    labels = control_residuals(data, wheelbase) if needs_labels else None
+    Xw = _window_states(windows, recipe.state)
+    Uw = windows.command
+    if recipe.model_input == "control_residual" and labels is not None:
+        Uw = labels.delta[idx]
+    Yw = labels.nominal[idx] if recipe.output == "nominal_input" and labels is not None else None
+    return Xw, Uw, Yw
 
 
 def train_model(
@@ -129,38 +151,25 @@ def train_model(
     report : TrainReport
     """
     cfg = config if config is not None else TrainConfig()
+    recipe = recipe_of_kind(cfg.kind)
     windows = local_frame_windows(data, cfg.augment)
-    idx = windows.indices
     n_hold = round(cfg.holdout * windows.n_windows) if windows.n_windows > 4 else 0
     split = windows.n_windows - n_hold
-    Y = None
-    if cfg.kind == "residual":
-        labels = control_residuals(data, wheelbase)
-        Xw, Uw = _window_arrays(windows, _RESIDUAL, windows.command)
-        Yw = labels.nominal[idx]
-    elif cfg.kind == "paper":
-        labels = control_residuals(data, wheelbase)
-        Xw, Uw = _window_arrays(windows, _POSE, labels.delta[idx])
-        Yw = None
-    else:
-        Xw, Uw = _window_arrays(windows, _KOOPMAN, windows.command)
-        Yw = None
+    Xw, Uw, Yw = training_arrays(data, wheelbase, cfg.kind, windows)
     train = slice(0, split)
     X = Xw[train, :-1].reshape(-1, Xw.shape[-1])
     X_next = Xw[train, 1:].reshape(-1, Xw.shape[-1])
     U = Uw[train].reshape(-1, Uw.shape[-1])
-    if Yw is not None:
-        Y = Yw[train].reshape(-1, Yw.shape[-1])
-    model = KoopmanModel(**cfg.model)
+    Y = None if Yw is None else Yw[train].reshape(-1, Yw.shape[-1])
+    model = cfg.unfitted_model()
     t0 = time.perf_counter()
     model.fit(X, U, X_next, Y=Y, windows=(Xw[train], Uw[train]), on_epoch=on_epoch)
     fit_time = time.perf_counter() - t0
+    multi: list[float] = []
     if n_hold:
         hold = slice(split, None)
         err = model.multi_step_error(Xw[hold], Uw[hold], None if Yw is None else Yw[hold])
         multi = [float(e) for e in err]
-    else:
-        multi = []
     report = TrainReport(
         raw_count=len(data),
         augmented_count=windows.augmented_count,
@@ -171,27 +180,14 @@ def train_model(
     )
     model.metadata_ = {
         "kind": cfg.kind,
-        "features": MODEL_KINDS[cfg.kind],
+        "features": [] if recipe.state is None else list(recipe.state.names),
+        "model_input": recipe.model_input,
+        "output": recipe.output,
         "data_hash": data.content_hash(),
         "data_metadata": data.metadata,
         "augment": asdict(cfg.augment),
         "wheelbase": wheelbase,
-        "rkmpc_version": __version__,
+        "rkmpc_version": RKMPC_VERSION,
         "report": asdict(report),
     }
     return model, report
-
-
-def default_model_options(kind: str, *, seed: int = 0) -> dict[str, Any]:
-    """The :class:`KoopmanModel` settings used for each model kind by default."""
-    if kind not in MODEL_KINDS:
-        raise ParameterError(f"unknown model kind {kind!r}; known: {sorted(MODEL_KINDS)}")
-    # A fixed number of epochs, no wall-clock budget: the model must not depend on the machine's load.
-    return {
-        "lifting": "mlp",
-        "n_lift": 16,
-        "hidden": (64, 64),
-        "seed": seed,
-        "epochs": 100,
-        "max_seconds": None,
-    }

@@ -1,0 +1,1 @@
+"""Simulation: the closed loop, its log, scenarios, faults, runs and data collection."""

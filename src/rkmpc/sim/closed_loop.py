@@ -8,12 +8,15 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from rkmpc.control.base import OBSERVATION_FIELDS, Controller
-from rkmpc.errors import ParameterError
+from rkmpc.control.base import Controller
+from rkmpc.core.angles import wrap_scalar
+from rkmpc.core.errors import ParameterError
+from rkmpc.core.observation import OBSERVATION_FIELDS, Command, Observation
 from rkmpc.sim.log import StepLog
+from rkmpc.track.path import Path, Projection
 from rkmpc.track.reference import Reference
 from rkmpc.track.track import Track
-from rkmpc.vehicle.plant import Plant
+from rkmpc.vehicle.plants.base import Plant
 
 #: Ways a run can end.
 OUTCOMES = ("completed", "off_track", "timeout", "diverged")
@@ -149,33 +152,17 @@ def simulate(
     SimResult
     """
     cfg = config if config is not None else SimConfig()
-    path = reference.path
-    length = path.length
-    dt = cfg.dt
-    s0 = cfg.start_s % length
-    start = path.position(s0)
-    yaw0 = float(path.heading(s0))
-    wheelbase = reference.wheelbase
-    if cfg.flying_start:
-        speed0 = float(reference.profile.speed(s0))
-        steer0 = math.atan(wheelbase * float(path.curvature(s0)))
-    else:
-        speed0, steer0 = 0.0, 0.0
-    plant.reset(float(start[0]), float(start[1]), yaw0, speed0, steer0)
+    length = reference.path.length
+    s0 = _start(plant, reference, cfg)
     controller.reset()
-    max_time = (
-        cfg.max_time if cfg.max_time is not None else 3.0 * cfg.laps * reference.profile.lap_time + 10.0
-    )
-    goal = cfg.laps * length
-    max_steps = math.ceil(max_time / dt) + 1
+    lap_time = reference.profile.lap_time
+    max_time = cfg.max_time if cfg.max_time is not None else 3.0 * cfg.laps * lap_time + 10.0
+    max_steps = math.ceil(max_time / cfg.dt) + 1
     log = StepLog(log_columns(plant.STATE_NAMES), capacity=min(max_steps, 20000))
-
     names = plant.STATE_NAMES
     pose_index = (names.index("x"), names.index("y"), names.index("yaw"))
-    s_prev = s0
+    laps = _LapCounter(reference.path, s0, cfg.dt)
     s_track: float | None = None
-    progress = 0.0
-    crossings: list[float] = []
     outcome = "timeout"
     for _ in range(max_steps):
         obs = plant.observe()
@@ -186,56 +173,106 @@ def simulate(
             break
         # Errors of the true pose against the reference path; progress unwrapped across the line.
         true_x, true_y, true_yaw = (float(state[i]) for i in pose_index)
-        proj = path.project(true_x, true_y, s_prev)
-        ds = (proj.s - s_prev + 0.5 * length) % length - 0.5 * length
-        lap_goal = (len(crossings) + 1) * length
-        if progress + ds >= lap_goal and len(log) > 0:
-            # Interpolate the line-crossing time between the previous and this step.
-            crossings.append(t - dt + dt * (lap_goal - progress) / max(ds, 1e-12))
-        progress += ds
-        s_prev = proj.s
+        proj = laps.update(true_x, true_y, t, first=len(log) == 0)
         s_track, _, margin = track.boundary_offsets(true_x, true_y, s_track)
-        heading_error = (true_yaw - float(proj.heading) + math.pi) % (2 * math.pi) - math.pi
-        if progress >= goal:
+        if laps.progress >= cfg.laps * length:
             outcome = "completed"
             break
         on_track = margin >= 0.0
         command = controller.step(obs) if on_track else None
-        if command is None:
-            cmd = (math.nan, math.nan, math.nan, math.nan)
-        else:
-            info = controller.info
-            cmd = (command.speed, command.steer, info.solve_time_s, _STATUS_CODES.get(info.status, 2.0))
+        errors = (proj.lateral, wrap_scalar(true_yaw - float(proj.heading)), margin)
         log.append(
-            np.concatenate(
-                [
-                    (t, proj.s, progress),
-                    obs.as_array(),
-                    state,
-                    cmd[:2],
-                    (plant.wheel_angle,),
-                    _reference_row(reference, proj.s),
-                    (proj.lateral, heading_error, margin),
-                    cmd[2:],
-                ]
-            )
+            _log_row(t, proj.s, laps.progress, obs, state, plant, controller, command, reference, errors)
         )
-        if not on_track:
+        if command is None:
             outcome = "off_track"
             break
-        plant.step(command, dt)  # type: ignore[arg-type]
+        plant.step(command, cfg.dt)
         if on_step is not None:
-            on_step(t, progress / length)
-    lap_times = list(np.diff([0.0, *crossings]).astype(float)) if crossings else []
+            on_step(t, laps.progress / length)
+    lap_times = list(np.diff([0.0, *laps.crossings]).astype(float)) if laps.crossings else []
     log.metadata["outcome"] = outcome
     log.metadata["lap_times"] = lap_times
     return SimResult(
         log=log,
         outcome=outcome,
-        progress=progress / length,
+        progress=laps.progress / length,
         lap_length=length,
         lap_times=lap_times,
         fallback_count=controller.fallback_count,
+    )
+
+
+def _start(plant: Plant, reference: Reference, cfg: SimConfig) -> float:
+    """Reset the plant at the start of the run; returns the start's arc length (m)."""
+    path = reference.path
+    s0 = cfg.start_s % path.length
+    start = path.position(s0)
+    yaw0 = float(path.heading(s0))
+    if cfg.flying_start:
+        speed0 = float(reference.profile.speed(s0))
+        steer0 = math.atan(reference.wheelbase * float(path.curvature(s0)))
+    else:
+        speed0, steer0 = 0.0, 0.0
+    plant.reset(float(start[0]), float(start[1]), yaw0, speed0, steer0)
+    return s0
+
+
+class _LapCounter:
+    """Distance driven along the reference path (m), unwrapped across the start line, and lap crossings."""
+
+    def __init__(self, path: Path, s0: float, dt: float) -> None:
+        self.path = path
+        self.length = path.length
+        self.dt = dt
+        self.s_prev = s0
+        self.progress = 0.0
+        #: Times (s) at which the car crossed the start line, one per lap completed.
+        self.crossings: list[float] = []
+
+    def update(self, x: float, y: float, t: float, *, first: bool) -> Projection:
+        """Project the car at time ``t`` (s), advance the progress; returns the projection."""
+        length = self.length
+        proj = self.path.project(x, y, self.s_prev)
+        ds = (proj.s - self.s_prev + 0.5 * length) % length - 0.5 * length
+        lap_goal = (len(self.crossings) + 1) * length
+        if self.progress + ds >= lap_goal and not first:
+            # Interpolate the line-crossing time between the previous and this step.
+            self.crossings.append(t - self.dt + self.dt * (lap_goal - self.progress) / max(ds, 1e-12))
+        self.progress += ds
+        self.s_prev = proj.s
+        return proj
+
+
+def _log_row(
+    t: float,
+    s: float,
+    progress: float,
+    obs: Observation,
+    state: np.ndarray,
+    plant: Plant,
+    controller: Controller,
+    command: Command | None,
+    reference: Reference,
+    errors: tuple[float, float, float],
+) -> np.ndarray:
+    """One row of the step log (see :func:`log_columns`); NaN command columns when there is none."""
+    if command is None:
+        cmd = (math.nan, math.nan, math.nan, math.nan)
+    else:
+        info = controller.info
+        cmd = (command.speed, command.steer, info.solve_time_s, _STATUS_CODES.get(info.status, 2.0))
+    return np.concatenate(
+        [
+            (t, s, progress),
+            obs.as_array(),
+            state,
+            cmd[:2],
+            (plant.wheel_angle,),
+            _reference_row(reference, s),
+            errors,
+            cmd[2:],
+        ]
     )
 
 

@@ -4,15 +4,14 @@ from __future__ import annotations
 
 import csv
 import json
-import os
-import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from rkmpc.errors import InputFileError
+from rkmpc.core.errors import InputFileError
+from rkmpc.core.io import atomic_write, write_json_atomic
 
 
 class StepLog:
@@ -67,16 +66,9 @@ class StepLog:
         The metadata, if any, is written beside it as ``<path>.meta.json``.
         """
         path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-        try:
-            with os.fdopen(fd, "w", newline="") as handle:
-                handle.write(",".join(self.columns) + "\n")
-                np.savetxt(handle, self.as_array(), delimiter=",", fmt="%.9g")
-            os.replace(tmp, path)
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
+        with atomic_write(path) as handle:
+            handle.write(",".join(self.columns) + "\n")
+            np.savetxt(handle, self.as_array(), delimiter=",", fmt="%.9g")
         if self.metadata:
             write_json_atomic(path.with_suffix(path.suffix + ".meta.json"), self.metadata)
 
@@ -101,31 +93,3 @@ class StepLog:
         if meta.exists():
             log.metadata = json.loads(meta.read_text())
         return log
-
-
-def write_json_atomic(path: str | Path, payload: Any) -> None:
-    """Write JSON to a temporary file in the same folder, then rename it into place."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w") as handle:
-            json.dump(payload, handle, indent=2, sort_keys=False, default=json_default)
-            handle.write("\n")
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
-def json_default(value: Any) -> Any:
-    """``default=`` hook of :func:`json.dump` for numpy values, paths and tuples."""
-    if isinstance(value, np.generic):
-        return value.item()
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    if isinstance(value, Path):
-        return str(value)
-    if isinstance(value, tuple):
-        return list(value)
-    raise TypeError(f"cannot write {type(value).__name__} as JSON")

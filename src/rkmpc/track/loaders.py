@@ -7,7 +7,7 @@ by name, so their order does not matter and extra columns are ignored.  The
 points form a closed loop; the first point should not be repeated at the end
 (if it is, the copy is dropped).
 
-Validation rules (each failure raises :class:`rkmpc.errors.InputFileError`
+Validation rules (each failure raises :class:`rkmpc.core.errors.InputFileError`
 naming the file, the column where relevant, and the problem):
 
 * the file must exist and be readable text with a header line;
@@ -32,8 +32,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
-from rkmpc.errors import InputFileError, ParameterError
-from rkmpc.track.path import Path, dedupe_mask
+from rkmpc.core.errors import InputFileError, ParameterError
+from rkmpc.track.path import Path
+from rkmpc.track.points import dedupe_mask
 from rkmpc.track.track import Track
 
 __all__ = [

@@ -10,7 +10,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from rkmpc.errors import ParameterError
+from rkmpc.core.angles import TWO_PI as _TWO_PI
+from rkmpc.core.angles import wrap_scalar
+from rkmpc.core.errors import ParameterError
 from rkmpc.track.path import Path, Projection
 from rkmpc.track.speed_profile import SpeedProfile
 
@@ -18,7 +20,6 @@ __all__ = ["Reference", "ReferenceHorizon"]
 
 FloatArray = NDArray[np.float64]
 
-_TWO_PI = 2.0 * math.pi
 # Spacing of the reference's path table (m) and bounds on its size.
 _TABLE_SPACING = 0.02
 _TABLE_MIN = 2000
@@ -249,11 +250,7 @@ class Reference:
         vals = _add(lower, upper)  # rows x, y, theta, v, delta
         th0 = float(vals[2, 0])
         # Shift theta so that theta[0] lies in (-pi, pi].
-        wrapped0 = math.pi - math.fmod(math.pi - th0, _TWO_PI)
-        if wrapped0 <= -math.pi:
-            wrapped0 += _TWO_PI
-        elif wrapped0 > math.pi:
-            wrapped0 -= _TWO_PI
+        wrapped0 = wrap_scalar(th0)
         theta = vals[2] + (wrapped0 - th0)
         # ReferenceHorizon(...) without the frozen dataclass's per-field __setattr__.
         out = _new_object(ReferenceHorizon)
@@ -283,11 +280,7 @@ class Reference:
         theta = vals[:, 2] + self._theta_per_lap * laps
         # Shift theta so that theta[0] lies in (-pi, pi].
         th0 = theta[0]
-        wrapped0 = math.pi - math.fmod(math.pi - th0, _TWO_PI)
-        if wrapped0 <= -math.pi:
-            wrapped0 += _TWO_PI
-        elif wrapped0 > math.pi:
-            wrapped0 -= _TWO_PI
+        wrapped0 = wrap_scalar(th0)
         theta = theta + (wrapped0 - th0)
         s_out = np.where(s_lap >= length, s_lap - length, s_lap)
         return ReferenceHorizon(
@@ -303,4 +296,4 @@ class Reference:
         """Project a point onto the reference path (see :meth:`Path.project`)."""
         if s_hint is None:
             return self.path.project(x, y)
-        return self.path._project_hinted(float(x), float(y), float(s_hint))
+        return self.path.projector.project_hinted(float(x), float(y), float(s_hint))

@@ -26,7 +26,7 @@ from dataclasses import dataclass, fields
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from rkmpc.errors import ParameterError
+from rkmpc.core.errors import ParameterError
 from rkmpc.track.path import Path
 
 __all__ = ["SpeedLimits", "SpeedProfile", "speed_profile"]

@@ -1,7 +1,6 @@
 """Vehicle models: parameters, the paper's kinematic model, tyres and simulated plants."""
 
-from rkmpc.vehicle.dynamic import DynamicPlant
-from rkmpc.vehicle.fullsize import FullSizePlant
+from rkmpc.vehicle.friction import CircularRegion, FrictionChange, FrictionSchedule
 from rkmpc.vehicle.kinematic import (
     KINEMATIC_INPUT_NAMES,
     KINEMATIC_STATE_NAMES,
@@ -17,15 +16,10 @@ from rkmpc.vehicle.params import (
     f1tenth,
     fullsize,
 )
-from rkmpc.vehicle.plant import (
-    PLANTS,
-    ActuatedPlant,
-    CircularRegion,
-    FrictionChange,
-    FrictionSchedule,
-    Plant,
-    make_plant,
-)
+from rkmpc.vehicle.plants.base import ActuatedPlant, Plant
+from rkmpc.vehicle.plants.dynamic import DynamicPlant
+from rkmpc.vehicle.plants.fullsize import FullSizePlant
+from rkmpc.vehicle.registry import PLANTS, make_plant
 from rkmpc.vehicle.tyres import pacejka_lateral_force, pacejka_lateral_force_array
 from rkmpc.vehicle.wrappers import NoiseStd, ObservationNoise, PlantWrapper
 

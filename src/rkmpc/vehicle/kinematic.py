@@ -19,7 +19,7 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike
 
-from rkmpc.errors import ParameterError
+from rkmpc.core.errors import ParameterError
 
 #: Names of the kinematic state components, in order.
 KINEMATIC_STATE_NAMES: tuple[str, ...] = ("x", "y", "theta")

@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field, fields, replace
 
-from rkmpc.errors import ParameterError
+from rkmpc.core.errors import ParameterError
 
 
 def _check_positive(obj: object, *names: str) -> None:

@@ -1,4 +1,4 @@
-"""Plant wrappers: optional features layered around any :class:`~rkmpc.vehicle.plant.Plant`.
+"""Plant wrappers: optional features layered around any :class:`~rkmpc.vehicle.plants.base.Plant`.
 
 In the style of Gymnasium wrappers, each feature is a class that holds a plant
 and forwards everything it does not change, so features compose by nesting
@@ -13,9 +13,9 @@ from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
-from rkmpc.control.base import Command, Observation
-from rkmpc.errors import ParameterError
-from rkmpc.vehicle.plant import Plant, check_command
+from rkmpc.core.errors import ParameterError
+from rkmpc.core.observation import Command, Observation
+from rkmpc.vehicle.plants.base import Plant, check_command
 
 
 class PlantWrapper(Plant):

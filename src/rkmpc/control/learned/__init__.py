@@ -1,0 +1,1 @@
+"""Learned controllers: the Koopman MPC and the residual Koopman MPCs (RKMPC)."""

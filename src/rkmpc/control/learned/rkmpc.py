@@ -1,0 +1,281 @@
+"""Residual Koopman MPC: a linear MPC plus a residual MPC on a lifted model.
+
+Both controllers here keep the paper's structure: the LMPC of
+:mod:`rkmpc.control.linear.lmpc` computes the baseline ``U_lmpc`` on the kinematic
+model; a second, residual MPC on a learned lifted linear (Koopman) model
+computes the correction ``dU``; the car receives ``U_lmpc + dU`` clipped to its
+limits. They differ in what the learned model describes (see ``docs/method.md``).
+
+``rkmpc`` (default): the residual sits in the kinematic model's input channel.
+The lifted model, on features of the measured speed, wheel angle and yaw rate,
+predicts the input ``U_p`` that the kinematic model needs to reproduce the
+car's motion when ``U`` is applied (so ``dU_label = U - U_p``). The residual
+MPC chooses ``dU`` so that the kinematic model driven by the predicted ``U_p``
+follows the reference, around the LMPC's own linearisation.
+
+The default's residual Hessian contains the LMPC's condensed prediction, so it
+changes at every step and is factorised with LAPACK rather than by the QP
+solver (see :class:`rkmpc.control.qp.DaqpQP`).
+
+``rkmpc-paper``: the literal reading. The lifted state is the pose in the car's
+local frame, ``z = [x, y, theta, psi(x, y, theta)]``, driven by the control
+residual ``dU``; the residual MPC tracks the reference in the local frame with
+``mu dv^2 + eps ddelta^2`` on the correction (paper Eq. MPC2). Its model is time
+invariant, so the QP's Hessian is fixed at construction and only the gradient
+changes.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from rkmpc.control.base import Controller
+from rkmpc.control.guard import CommandGuard
+from rkmpc.control.learned.lifted import LiftedModel, lifted_prediction, reference_in_local_frame
+from rkmpc.control.linear.lmpc import LinearMPC, LMPCConfig, Prediction
+from rkmpc.control.qp import make_qp
+from rkmpc.core.errors import ParameterError
+from rkmpc.core.observation import Command, Observation
+from rkmpc.core.validation import require_nonnegative
+from rkmpc.learning.features import FeatureMap
+from rkmpc.learning.recipes import recipe_for
+from rkmpc.vehicle.params import VehicleParams
+
+if TYPE_CHECKING:
+    from rkmpc.track.reference import Reference
+
+
+def _state_features(controller: str) -> FeatureMap:
+    """The state features of a learned controller's recipe (the map its model was trained on)."""
+    recipe = recipe_for(controller)
+    if recipe is None or recipe.state is None:
+        raise ParameterError(f"no Koopman recipe for the controller {controller!r}")
+    return recipe.state
+
+
+def _all_finite(values: np.ndarray) -> bool:
+    """Whether every entry of a small float array is finite."""
+    return bool(np.isfinite(values).all())
+
+
+@dataclass(frozen=True)
+class ResidualMPCConfig:
+    """Weights and bounds of the residual MPC (paper Eq. MPC2).
+
+    Parameters
+    ----------
+    position_weight, heading_weight : float
+        Tracking weights of the predicted position and heading errors.
+    speed_weight : float
+        mu: weight of the squared speed correction ``dv^2``.
+    steer_weight : float
+        epsilon: weight of the squared steering correction ``ddelta^2``.
+    max_speed_correction : float
+        Bound on ``|dv|`` (m/s).
+    max_steer_correction : float
+        Bound on ``|ddelta|`` (rad).
+    solver : str
+        QP backend.
+    max_iterations : int
+        QP iteration budget; on failure the LMPC's command is applied alone.
+    """
+
+    position_weight: float = 1.0
+    heading_weight: float = 1.0
+    speed_weight: float = 0.5
+    steer_weight: float = 2.0
+    max_speed_correction: float = 1.0
+    max_steer_correction: float = 0.15
+    solver: str = "daqp"
+    max_iterations: int = 200
+
+    def __post_init__(self) -> None:
+        require_nonnegative(self, "position_weight", "heading_weight", "speed_weight", "steer_weight")
+        if self.speed_weight <= 0 or self.steer_weight <= 0:
+            raise ParameterError("ResidualMPCConfig: speed_weight and steer_weight must be > 0")
+        if not (self.max_speed_correction > 0 and self.max_steer_correction > 0):
+            raise ParameterError("ResidualMPCConfig: correction bounds must be > 0")
+
+
+class _ResidualBase(Controller):
+    """LMPC baseline plus a residual QP; subclasses supply the residual problem."""
+
+    #: Residual MPC settings used when none are given.
+    default_config = ResidualMPCConfig()
+    #: Whether the residual QP's Hessian changes every step (then it is factorised with LAPACK).
+    varying_hessian = True
+
+    def __init__(
+        self,
+        reference: Reference,
+        vehicle: VehicleParams,
+        model: LiftedModel,
+        config: ResidualMPCConfig | None = None,
+        lmpc_config: LMPCConfig | None = None,
+    ) -> None:
+        super().__init__()
+        self.reference = reference
+        self.vehicle = vehicle
+        self.model = model
+        self.config = config if config is not None else self.default_config
+        self.state: FeatureMap = _state_features(self.name)
+        self.lmpc = LinearMPC(reference, vehicle, lmpc_config)
+        n = self.lmpc.config.horizon
+        self.horizon = n
+        self._qp = make_qp(
+            self.config.solver, max_iterations=self.config.max_iterations, factorize=self.varying_hessian
+        )
+        self._d_max = np.tile([self.config.max_speed_correction, self.config.max_steer_correction], n)
+        self._neg_d_max = -self._d_max
+        self._guard = CommandGuard(vehicle, self.lmpc.config.dt, n)
+        self._u_min = np.tile(self._guard.u_min, n)
+        self._u_max = np.tile(self._guard.u_max, n)
+        w = [self.config.position_weight, self.config.position_weight, self.config.heading_weight]
+        self._q = np.tile(w, n)
+        self._r = np.tile([self.config.speed_weight, self.config.steer_weight], n)
+        self._R = np.diag(self._r)
+        #: Last correction applied (first step), shape (2,).
+        self.last_correction = np.zeros(2)
+        # The Hessian the residual QP holds (a fixed one need not be passed again).
+        self._qp_hessian: np.ndarray | None = None
+        self._precompute()
+
+    def _precompute(self) -> None:
+        """Compute what does not change between steps (subclasses)."""
+
+    def _reset(self) -> None:
+        self.lmpc.reset()
+        self._guard.reset()
+        self.last_correction = np.zeros(2)
+
+    def _step(self, observation: Observation) -> tuple[Command, str, str]:
+        base = self.lmpc.step(observation)
+        pred = self.lmpc.last_prediction
+        if self.lmpc.info.status != "ok" or pred is None:
+            return (
+                self._apply(np.array([base.speed, base.steer]), np.zeros(2)),
+                "fallback",
+                self.lmpc.info.message,
+            )
+        plan = pred.plan.reshape(-1)
+        try:
+            H, f = self._residual_qp(observation, pred, plan)
+        except FloatingPointError as exc:  # non-finite features: keep the baseline
+            return self._apply(np.array([base.speed, base.steer]), np.zeros(2)), "fallback", str(exc)
+        lb = self._u_min - plan
+        np.maximum(lb, self._neg_d_max, out=lb)
+        ub = self._u_max - plan
+        np.minimum(ub, self._d_max, out=ub)
+        # As the LMPC: never faster than the reference speed profile.
+        np.minimum(ub[0::2], pred.u_ref[:, 0] - pred.plan[:, 0], out=ub[0::2])
+        np.minimum(lb, ub, out=lb)
+        if not self._qp.is_setup:
+            self._qp.setup(H, f, lb, ub, np.zeros((0, plan.size)), np.zeros(0), np.zeros(0))
+        else:
+            self._qp.update(H=None if H is self._qp_hessian else H, f=f, lb=lb, ub=ub)
+        self._qp_hessian = H
+        result = self._qp.solve()
+        if not result.solved or not _all_finite(result.x):
+            return self._apply(plan[:2], np.zeros(2)), "fallback", f"residual QP failed: {result.status}"
+        return self._apply(plan[:2], result.x[:2]), "ok", ""
+
+    def _apply(self, base: np.ndarray, correction: np.ndarray) -> Command:
+        u = self._guard.apply(base + correction)
+        self.last_correction = u - base
+        return Command(speed=float(u[0]), steer=float(u[1]))
+
+    def _residual_qp(
+        self, observation: Observation, pred: Prediction, plan: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        raise NotImplementedError
+
+
+class ResidualKoopmanMPC(_ResidualBase):
+    """RKMPC with the residual in the kinematic model's input channel (the default ``rkmpc``).
+
+    Parameters
+    ----------
+    reference : Reference
+        Path and speed profile.
+    vehicle : VehicleParams
+        The car.
+    model : LiftedModel
+        Lifted linear model on the ``rkmpc`` recipe's features
+        (:data:`rkmpc.learning.features.RESIDUAL_STATE`) with input the applied
+        command and output the nominal input ``U_p`` (``y = C z + D u``).
+    config : ResidualMPCConfig, optional
+        Residual MPC weights and bounds.
+    lmpc_config : LMPCConfig, optional
+        The baseline LMPC's settings (its defaults otherwise).
+    """
+
+    name = "rkmpc"
+
+    def _precompute(self) -> None:
+        # Time invariant: U_p over the horizon = Mz z0 + Mu U, computed once.
+        m = self.model
+        self._Mz, self._Mu = lifted_prediction(m.A_, m.B_, m.C_, m.D_, self.horizon, first=0)
+
+    def _residual_qp(
+        self, observation: Observation, pred: Prediction, plan: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        x = self.state.of_observation(observation)
+        if not _all_finite(x):
+            raise FloatingPointError("rkmpc needs measured speed, yaw rate and wheel angle")
+        z0 = self.model.lift(x)
+        # Kinematic deviations when the car's effective input is U_p(U_lmpc + dU).
+        e0 = pred.Phi @ pred.xi0 + pred.Gamma @ (self._Mz @ z0 + self._Mu @ plan - pred.u_ref.ravel())
+        GM = pred.Gamma @ self._Mu
+        GtQ = (self._q[:, None] * GM).T
+        H = GtQ @ GM
+        H += self._R
+        H *= 2.0
+        f = GtQ @ e0
+        f *= 2.0
+        return H, f
+
+
+class PaperResidualKoopmanMPC(_ResidualBase):
+    """The literal reading of the paper's RKMPC (``rkmpc-paper``).
+
+    Parameters
+    ----------
+    reference : Reference
+        Path and speed profile.
+    vehicle : VehicleParams
+        The car.
+    model : LiftedModel
+        Lifted linear model with state ``[x, y, theta]`` in the local frame and
+        input the control residual ``dU``; ``C`` maps back to the pose.
+    config : ResidualMPCConfig, optional
+        Residual MPC weights and bounds.
+    lmpc_config : LMPCConfig, optional
+        The baseline LMPC's settings.
+    """
+
+    name = "rkmpc-paper"
+    #: The literal model mispredicts the pose, so only heavily weighted corrections keep it on track.
+    default_config = ResidualMPCConfig(heading_weight=5.0, speed_weight=5.0, steer_weight=5000.0)
+    varying_hessian = False
+
+    def _precompute(self) -> None:
+        m = self.model
+        self._Mz, self._Mu = lifted_prediction(m.A_, m.B_, m.C_[:3], None, self.horizon, first=1)
+        # The car sits at the origin of its own frame: the features of any observation are the pose 0.
+        origin = self.state.of_observation(Observation(0.0, 0.0, 0.0, 0.0))
+        self._free = self._Mz @ np.asarray(m.lift(origin), dtype=float)
+        # Fixed Hessian: the model is time invariant and starts at the local origin.
+        self._MtQ = self._Mu.T * self._q
+        self._H = 2.0 * (self._MtQ @ self._Mu + np.diag(self._r))
+
+    def _residual_qp(
+        self, observation: Observation, pred: Prediction, plan: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        local = reference_in_local_frame(pred.reference, observation).reshape(-1)
+        np.subtract(self._free, local, out=local)
+        f = self._MtQ @ local
+        f *= 2.0
+        return self._H, f

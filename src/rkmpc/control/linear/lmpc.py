@@ -1,0 +1,131 @@
+"""Linear MPC on the linearised kinematic bicycle model (the paper's MPC1).
+
+At each step the kinematic model is linearised along the time-indexed
+reference (paper Eq. 2-3), the deviation dynamics are condensed into a dense
+QP in the input deviations (:mod:`rkmpc.control.linear.problem`), and the QP is
+solved by a backend of :mod:`rkmpc.control.qp` that was set up once and is only
+updated. The QP's Hessian changes at every step, so it is factorised with
+LAPACK rather than by the QP solver (see :class:`rkmpc.control.qp.DaqpQP`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from rkmpc.control.linear.problem import KinematicMPCProblem, Prediction
+from rkmpc.control.qp import QP_SOLVERS, make_qp
+from rkmpc.control.tracking import Solution, TrackingController, TrackingCost, check_iterations
+from rkmpc.core.angles import wrap_scalar
+from rkmpc.core.errors import ParameterError
+from rkmpc.core.observation import Observation
+from rkmpc.vehicle.params import VehicleParams
+
+if TYPE_CHECKING:
+    from rkmpc.track.reference import Reference, ReferenceHorizon
+
+__all__ = ["LMPCConfig", "LinearMPC"]
+
+
+@dataclass(frozen=True)
+class LMPCConfig(TrackingCost):
+    """Weights, horizon and solver of the linear MPC.
+
+    The stage cost is the paper's MPC1,
+    ``(x-x_r)^2 + (y-y_r)^2 + heading*(theta-theta_r)^2 + speed*(v-v_r)^2 +
+    steer*(delta-delta_r)^2``, plus a penalty on the change of each input from
+    one step to the next (per step, not per second), which the baseline needs
+    to stay smooth on the real plant. The horizon, period and weights are
+    those of :class:`rkmpc.control.tracking.TrackingCost`.
+
+    Parameters
+    ----------
+    solver : str
+        QP backend, ``"daqp"`` (default) or ``"osqp"``.
+    max_iterations : int
+        QP iteration budget per step; a solve that exceeds it falls back.
+    """
+
+    solver: str = "daqp"
+    max_iterations: int = 200
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        check_iterations(self, self.max_iterations)
+        if self.solver not in QP_SOLVERS:
+            raise ParameterError(f"LMPCConfig.solver must be one of {QP_SOLVERS}, got {self.solver!r}")
+
+
+class LinearMPC(TrackingController):
+    """The paper's linear MPC (MPC1) on the kinematic bicycle model.
+
+    Parameters
+    ----------
+    reference : Reference
+        The path and speed profile to track.
+    vehicle : VehicleParams
+        Wheelbase and actuator limits.
+    config : LMPCConfig, optional
+        Weights, horizon and solver.
+
+    Attributes
+    ----------
+    last_plan : numpy.ndarray or None
+        Absolute inputs ``[v, delta]`` of the last successful solve, shape (N, 2).
+    last_prediction : Prediction or None
+        The prediction of the last step (for controllers built on top of the LMPC).
+    """
+
+    name = "lmpc"
+    #: Model states after ``[x, y, theta]`` (subclasses with richer models).
+    extra_states = 0
+    config: LMPCConfig
+
+    def __init__(
+        self, reference: Reference, vehicle: VehicleParams, config: LMPCConfig | None = None
+    ) -> None:
+        super().__init__(reference, vehicle, config if config is not None else LMPCConfig())
+        self.problem = KinematicMPCProblem(self.config, vehicle, extra_states=self.extra_states)
+        # The Hessian follows the reference: factorised by LAPACK, not by the solver, at every step.
+        self._qp = make_qp(self.config.solver, max_iterations=self.config.max_iterations, factorize=True)
+        self.last_plan: np.ndarray | None = None
+        self.last_prediction: Prediction | None = None
+
+    def _reset_solver(self) -> None:
+        self.last_plan = None
+        self.last_prediction = None
+
+    def _solve(self, observation: Observation, ref: ReferenceHorizon, u_ref: np.ndarray) -> Solution:
+        n = self.config.horizon
+        xi0, Phi, Gamma = self._prediction(observation, ref, u_ref)
+        problem = self.problem
+        H, f, lb, ub, lbA, ubA = problem.qp_numbers(xi0, u_ref, self.previous_command, Phi, Gamma)
+        if not self._qp.is_setup:
+            self._qp.setup(H, f, lb, ub, problem.A_rate, lbA, ubA)
+        else:
+            self._qp.update(H=H, f=f, lb=lb, ub=ub, lbA=lbA, ubA=ubA)
+        result = self._qp.solve()
+        solved = result.solved and bool(np.isfinite(result.x).all())
+        plan = u_ref + result.x.reshape(n, 2) if solved else u_ref.copy()
+        self.last_prediction = Prediction(
+            xi0=xi0, Phi=Phi, Gamma=Gamma, u_ref=u_ref, plan=plan, solved=solved, reference=ref
+        )
+        self.last_plan = plan if solved else None
+        return Solution(plan, "") if solved else Solution(None, f"QP failed: {result.status}")
+
+    def _prediction(
+        self, observation: Observation, ref: ReferenceHorizon, u_ref: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Initial deviation and condensed prediction ``(xi0, Phi, Gamma)`` of the model."""
+        n = self.config.horizon
+        xi0 = np.array(
+            [
+                observation.x - ref.x[0],
+                observation.y - ref.y[0],
+                wrap_scalar(observation.yaw - ref.theta[0]),
+            ]
+        )
+        Phi, Gamma = self.problem.prediction_matrices(ref.theta[:n], u_ref[:, 0], u_ref[:, 1])
+        return xi0, Phi, Gamma

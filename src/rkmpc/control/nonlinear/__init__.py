@@ -1,0 +1,1 @@
+"""Nonlinear MPCs on CasADi (IPOPT, SQP) and, with the optional extra, acados."""

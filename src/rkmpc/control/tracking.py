@@ -1,0 +1,214 @@
+"""Reference tracking over a horizon: the cost every MPC shares, and the step they all take.
+
+:class:`TrackingCost` holds the horizon, the period and the weights of the
+tracking cost of the paper's MPC1,
+
+.. math::
+
+    \\sum_{k=1}^{N} q_p \\|p_k - p^r_k\\|^2 + q_\\theta (\\theta_k - \\theta^r_k)^2
+    + \\sum_{k=0}^{N-1} r_v (v_k - v^r_k)^2 + r_\\delta (\\delta_k - \\delta^r_k)^2
+    + w_v (v_k - v_{k-1})^2 + w_\\delta (\\delta_k - \\delta_{k-1})^2,
+
+with the last state weighted ``terminal_factor`` times and the speed bounded
+by the profile plus ``speed_margin``. The configurations of the linear, the
+Koopman and the nonlinear MPCs inherit it (do-mpc style: settings shared by
+inheritance), so they differ only in their model and solver settings.
+
+:class:`TrackingController` is the step they all take (a template method):
+project the car onto the reference (hinted by the previous projection, so it
+never jumps across the track), take the reference horizon and its inputs, on
+the first step take the car's speed and the feed-forward angle as the command
+applied before, let the subclass solve for a plan (:meth:`TrackingController._solve`),
+and hand the plan, or the fall-back when the solve failed, to the
+:class:`~rkmpc.control.guard.CommandGuard`.
+"""
+
+from __future__ import annotations
+
+import numbers
+from abc import abstractmethod
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from rkmpc.control.base import Controller
+from rkmpc.control.guard import CommandGuard
+from rkmpc.core.errors import ParameterError
+from rkmpc.core.observation import Command, Observation
+from rkmpc.core.validation import require_nonnegative, require_positive
+from rkmpc.vehicle.params import VehicleParams
+
+if TYPE_CHECKING:
+    from rkmpc.track.reference import Reference, ReferenceHorizon
+
+__all__ = ["MPC_WEIGHTS", "Solution", "TrackingController", "TrackingCost"]
+
+#: Weights of the tracking cost (all finite and >= 0).
+MPC_WEIGHTS = (
+    "position_weight",
+    "heading_weight",
+    "speed_weight",
+    "steer_weight",
+    "speed_rate_weight",
+    "steer_rate_weight",
+    "terminal_factor",
+)
+
+
+@dataclass(frozen=True)
+class TrackingCost:
+    """Horizon, period and weights of the tracking cost shared by the MPCs.
+
+    Parameters
+    ----------
+    horizon : int
+        Prediction horizon N (steps), >= 2.
+    dt : float
+        Control period T (s).
+    position_weight : float
+        Weight of the squared x and y errors (1/m^2 relative units).
+    heading_weight : float
+        lambda: weight of the squared heading error.
+    speed_weight : float
+        mu: weight of the squared speed deviation from the reference.
+    steer_weight : float
+        epsilon: weight of the squared steering deviation from the reference.
+    speed_rate_weight, steer_rate_weight : float
+        Weights of the squared step-to-step changes of speed and steering (per step,
+        not per second, including the change from the command applied before).
+    terminal_factor : float
+        Multiplier of the state weights at the last step of the horizon.
+    speed_margin : float
+        Largest speed above the reference speed profile the MPC may command
+        (m/s). Without it the kinematic model, in which yaw rate grows with
+        speed, accelerates into corners whenever the steering saturates.
+    """
+
+    horizon: int = 30
+    dt: float = 0.05
+    position_weight: float = 1.0
+    heading_weight: float = 5.0
+    speed_weight: float = 0.05
+    steer_weight: float = 2.0
+    speed_rate_weight: float = 0.05
+    steer_rate_weight: float = 0.1
+    terminal_factor: float = 1.0
+    speed_margin: float = 0.0
+
+    def __post_init__(self) -> None:
+        name = type(self).__name__
+        if (
+            isinstance(self.horizon, bool)
+            or not isinstance(self.horizon, numbers.Integral)
+            or self.horizon < 2
+        ):
+            raise ParameterError(f"{name}.horizon must be an integer >= 2, got {self.horizon!r}")
+        require_positive(self, "dt")
+        require_nonnegative(self, *MPC_WEIGHTS, "speed_margin")
+        if self.speed_weight + self.speed_rate_weight <= 0 or self.steer_weight + self.steer_rate_weight <= 0:
+            raise ParameterError(f"{name}: each input needs a positive weight or rate weight")
+
+
+def check_iterations(config: object, value: int) -> None:
+    """Raise :class:`ParameterError` unless ``value`` (``max_iterations``) is an integer >= 1."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 1:
+        raise ParameterError(f"{type(config).__name__}.max_iterations must be an integer >= 1, got {value!r}")
+
+
+@dataclass(frozen=True)
+class Solution:
+    """What a tracking controller's solver returned for one step.
+
+    Parameters
+    ----------
+    plan : numpy.ndarray or None
+        Absolute inputs ``[v (m/s), delta (rad)]`` over the horizon, shape (N, 2), or None
+        when the solve failed (the guard then falls back).
+    message : str
+        Why it failed; empty on success.
+    """
+
+    plan: np.ndarray | None
+    message: str = ""
+
+
+class TrackingController(Controller):
+    """A controller that tracks the reference over a horizon (the template step of every MPC).
+
+    Subclasses implement :meth:`_solve` and may override :meth:`_reference_inputs`,
+    :meth:`_first_previous_input` and :meth:`_reset_solver`.
+
+    Parameters
+    ----------
+    reference : Reference
+        Path and speed profile to track.
+    vehicle : VehicleParams
+        Input limits and steering-rate limit (and whatever the model needs).
+    config : TrackingCost
+        Horizon, period and weights (a subclass's configuration).
+    """
+
+    def __init__(self, reference: Reference, vehicle: VehicleParams, config: TrackingCost) -> None:
+        super().__init__()
+        self.reference = reference
+        self.vehicle = vehicle
+        self.config = config
+        self._guard = CommandGuard(vehicle, config.dt, config.horizon)
+        self._s_hint: float | None = None
+
+    def _reset(self) -> None:
+        self._s_hint = None
+        self._guard.reset()
+        self._reset_solver()
+
+    def _reset_solver(self) -> None:
+        """Forget the solver's state (warm starts); nothing by default."""
+
+    def _reference_inputs(self, ref: ReferenceHorizon) -> np.ndarray:
+        """Reference inputs ``[v_r, delta_r]`` over the horizon, shape (N, 2)."""
+        n = self.config.horizon
+        u_ref = np.empty((n, 2))
+        u_ref[:, 0] = ref.v[:n]
+        u_ref[:, 1] = ref.delta[:n]
+        return u_ref
+
+    def _first_previous_input(self, observation: Observation, u_ref: np.ndarray) -> np.ndarray:
+        """The command taken as applied before the first step: the car's speed, the feed-forward angle."""
+        return np.array([observation.speed, u_ref[0, 1]])
+
+    def _track(self, observation: Observation) -> tuple[ReferenceHorizon, np.ndarray]:
+        """Project the car, take the reference horizon and its inputs; set the previous command once."""
+        cfg = self.config
+        proj = self.reference.project(observation.x, observation.y, self._s_hint)
+        self._s_hint = proj.s
+        ref = self.reference.horizon(proj.s, cfg.horizon, cfg.dt)
+        u_ref = self._reference_inputs(ref)
+        if self._guard.previous is None:
+            self._guard.previous = self._first_previous_input(observation, u_ref)
+        return ref, u_ref
+
+    @property
+    def previous_command(self) -> np.ndarray:
+        """The command applied at the previous step, ``[speed (m/s), steer (rad)]`` (set by the first)."""
+        previous = self._guard.previous
+        if previous is None:
+            raise RuntimeError(f"{type(self).__name__}: no command yet; the first step sets it")
+        return previous
+
+    @abstractmethod
+    def _solve(self, observation: Observation, ref: ReferenceHorizon, u_ref: np.ndarray) -> Solution:
+        """Solve for a plan along ``ref``; ``self._guard.previous`` is the command applied before."""
+
+    def _step(self, observation: Observation) -> tuple[Command, str, str]:
+        ref, u_ref = self._track(observation)
+        solution = self._solve(observation, ref, u_ref)
+        guard = self._guard
+        if solution.plan is not None:
+            u = guard.accept(solution.plan)
+            status, message = "ok", ""
+        else:
+            u = guard.fallback(u_ref[0])
+            status, message = "fallback", solution.message
+        u = guard.apply(u)
+        return Command(speed=float(u[0]), steer=float(u[1])), status, message

@@ -1,0 +1,245 @@
+"""One track, every controller: collect LMPC laps, learn, drive, measure (the paper's Table I).
+
+Two laps of LMPC data train the residual models and identify ``lmpc-id``; the
+KMPC model is trained on random-excitation data of the car (it does not depend
+on the track, and is cached by content hash so that it is trained once per car
+and setting); see :mod:`rkmpc.experiments.models`. Every controller then
+drives one flying lap from the same start; with a fault, each drives a second
+lap with the fault and the effect is classified (:func:`fault_effect`).
+"""
+
+from __future__ import annotations
+
+import numbers
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+from rkmpc.analysis.metrics import LapMetrics
+from rkmpc.control.learned.rkmpc import PaperResidualKoopmanMPC, ResidualKoopmanMPC, ResidualMPCConfig
+from rkmpc.core.errors import ParameterError
+from rkmpc.core.versions import versions
+from rkmpc.experiments.models import ModelPlan, learn_models
+from rkmpc.experiments.results import ControllerRun, FaultOutcome, TrackResult
+from rkmpc.experiments.runs import run_controller
+from rkmpc.sim.closed_loop import SimResult
+from rkmpc.sim.faults import DEFAULT_NOISE, get_fault
+from rkmpc.sim.log import StepLog
+from rkmpc.sim.run import RunSpec, run_record
+from rkmpc.sim.scenario import Scenario, load_scenario
+
+__all__ = [
+    "ALL_CONTROLLERS",
+    "DEGRADE_THRESHOLD",
+    "LEARNED_CONTROLLERS",
+    "CompareConfig",
+    "compare",
+    "fault_effect",
+]
+
+#: Controllers of the learned comparison, in table order.
+LEARNED_CONTROLLERS = ("lmpc", "lmpc-id", "rkmpc-paper", "rkmpc", "kmpc")
+
+#: Every controller of the paper's comparison plus the extra baselines, in table order.
+ALL_CONTROLLERS = ("pp", "lmpc", "lmpc-id", "nmpc", "nmpc-dynamic", "kmpc", "rkmpc-paper", "rkmpc")
+
+#: Residual MPC settings of the two RKMPC variants (tuned on builtin, Monza and Budapest, then fixed).
+RKMPC_CONFIG = ResidualKoopmanMPC.default_config
+RKMPC_PAPER_CONFIG = PaperResidualKoopmanMPC.default_config
+
+#: Relative growth of the mean lateral error above which a fault counts as degrading a controller.
+DEGRADE_THRESHOLD = 0.25
+
+
+def _is_int(value: Any, minimum: int) -> bool:
+    return isinstance(value, numbers.Integral) and not isinstance(value, bool) and int(value) >= minimum
+
+
+@dataclass(frozen=True)
+class CompareConfig:
+    """Settings of :func:`compare`.
+
+    Parameters
+    ----------
+    track : str
+        Built-in name or centre-line CSV path.
+    scale : float or None
+        Track scale (default: the vehicle's).
+    vehicle : str
+        Vehicle preset.
+    controllers : sequence of str
+        Controllers to drive.
+    laps : int
+        Laps of LMPC data to learn from.
+    seed : int
+        Seed of the data collection, training and runs.
+    kmpc_model : str or None
+        Path of a trained ``koopman`` model for ``kmpc``; when None it is
+        trained on ``kmpc_samples`` random-excitation samples (cached).
+    rkmpc : ResidualMPCConfig
+        Residual MPC settings of ``rkmpc``.
+    rkmpc_paper : ResidualMPCConfig
+        Residual MPC settings of ``rkmpc-paper``.
+    raceline : str or None
+        Race-line CSV to track instead of the centre line.
+    fault : str or None
+        Name of a fault (:data:`rkmpc.sim.faults.FAULTS`); each controller then also drives a lap with it.
+    kmpc_samples : int
+        Random-excitation samples of the KMPC model.
+    cache_dir : str or None
+        Model cache folder (:func:`rkmpc.experiments.cache.default_cache_dir` when None).
+    use_cache : bool
+        Read and write trained models in the cache.
+    model_files : tuple of (str, str)
+        ``(controller, path)`` pairs of models to use instead of training.
+    noise : bool
+        Drive every run with the default measurement noise (:data:`rkmpc.sim.faults.DEFAULT_NOISE`),
+        seeded by ``seed``.
+    run_laps : int
+        Laps each controller drives.
+    epochs : int or None
+        Training epochs of every learned model (None: the recipes' defaults); small values make
+        quick trials.
+    """
+
+    track: str
+    scale: float | None = None
+    vehicle: str = "f1tenth"
+    controllers: Sequence[str] = LEARNED_CONTROLLERS
+    laps: int = 2
+    seed: int = 0
+    kmpc_model: str | None = None
+    rkmpc: ResidualMPCConfig = field(default_factory=lambda: RKMPC_CONFIG)
+    rkmpc_paper: ResidualMPCConfig = field(default_factory=lambda: RKMPC_PAPER_CONFIG)
+    raceline: str | None = None
+    fault: str | None = None
+    kmpc_samples: int = 50_000
+    cache_dir: str | None = None
+    use_cache: bool = True
+    model_files: tuple[tuple[str, str], ...] = ()
+    noise: bool = False
+    run_laps: int = 1
+    epochs: int | None = None
+
+    def __post_init__(self) -> None:
+        for name, minimum in (("laps", 1), ("seed", 0), ("run_laps", 1), ("kmpc_samples", 1000)):
+            value = getattr(self, name)
+            if not _is_int(value, minimum):
+                raise ParameterError(f"CompareConfig.{name} must be an integer >= {minimum}, got {value!r}")
+        if self.epochs is not None and not _is_int(self.epochs, 1):
+            raise ParameterError(f"CompareConfig.epochs must be None or an integer >= 1, got {self.epochs!r}")
+        if not self.controllers:
+            raise ParameterError("CompareConfig.controllers is empty")
+        if self.fault is not None:
+            get_fault(self.fault)
+
+    def plan(self) -> ModelPlan:
+        """What to learn for the comparison."""
+        files = dict(self.model_files)
+        if self.kmpc_model is not None:
+            files.setdefault("kmpc", self.kmpc_model)
+        return ModelPlan(
+            controllers=tuple(self.controllers),
+            laps=self.laps,
+            seed=self.seed,
+            excitation_samples=self.kmpc_samples,
+            model_files=files,
+            cache_dir=self.cache_dir,
+            use_cache=self.use_cache,
+            epochs=self.epochs,
+        )
+
+    def scenario(self) -> Scenario:
+        """The track, car and reference of the comparison."""
+        return load_scenario(self.track, raceline=self.raceline, scale=self.scale, vehicle=self.vehicle)
+
+
+def fault_effect(nominal: Mapping[str, Any], faulted: Mapping[str, Any], outcome: str) -> str:
+    """Classify what a fault did to a controller.
+
+    Returns ``"leaves the track"`` (the faulted run went off track), ``"does
+    not finish"`` (timed out or diverged), ``"degrades"`` (finished, but the
+    mean lateral error grew by more than :data:`DEGRADE_THRESHOLD`) or
+    ``"completes"``.
+    """
+    if outcome == "off_track":
+        return "leaves the track"
+    if not faulted["completed"]:
+        return "does not finish"
+    a, b = faulted["lateral_error_mean_m"], nominal["lateral_error_mean_m"]
+    if not nominal["completed"] or a is None or b is None:
+        return "completes"
+    return "degrades" if a > (1.0 + DEGRADE_THRESHOLD) * b else "completes"
+
+
+def compare(
+    config: CompareConfig,
+    *,
+    logs: dict[str, StepLog] | None = None,
+    on_run: Callable[[str, SimResult], None] | None = None,
+    say: Callable[[str], None] | None = None,
+) -> TrackResult:
+    """Learn on ``config.laps`` LMPC laps of the track and drive every controller.
+
+    Parameters
+    ----------
+    config : CompareConfig
+        What to run.
+    logs : dict, optional
+        Filled with the step log of each run, by controller name (and
+        ``"<name>+<fault>"`` for the faulted runs).
+    on_run : callable, optional
+        Called as ``on_run(label, result)`` after each run.
+    say : callable, optional
+        Called with a short message before each slow stage.
+
+    Returns
+    -------
+    TrackResult
+    """
+    scenario = config.scenario()
+    options, training = learn_models(scenario, config.plan(), say=say)
+    residual = {"rkmpc": config.rkmpc, "rkmpc-paper": config.rkmpc_paper}
+    for name, cfg in residual.items():
+        if name in options:
+            options[name]["config"] = cfg
+    noise = DEFAULT_NOISE if config.noise else None
+    runs: dict[str, ControllerRun] = {}
+    faulted: dict[str, ControllerRun] = {}
+    effects: dict[str, str] = {}
+    specs: list[RunSpec] = []
+
+    def drive(label: str, spec: RunSpec) -> tuple[ControllerRun, LapMetrics]:
+        specs.append(spec)
+        own = options[spec.controller] if spec.controller in options else None
+        result, metrics = run_controller(scenario, spec, controller_options=own)
+        result.log.metadata.update({"track": scenario.track.name})
+        if logs is not None:
+            logs[label] = result.log
+        if on_run is not None:
+            on_run(label, result)
+        return ControllerRun(metrics=metrics, outcome=result.outcome), metrics
+
+    for name in config.controllers:
+        if say is not None:
+            say(f"driving {name}")
+        runs[name], nominal = drive(name, RunSpec(name, laps=config.run_laps, seed=config.seed, noise=noise))
+        if config.fault is not None:
+            spec = RunSpec(name, laps=config.run_laps, seed=config.seed, noise=noise, fault=config.fault)
+            faulted[name], metrics = drive(f"{name}+{config.fault}", spec)
+            effects[name] = fault_effect(nominal, metrics, faulted[name].outcome)
+    record: dict[str, Any] = {
+        **run_record(scenario, specs),
+        "seed": config.seed,
+        "laps_of_data": config.laps,
+        "rkmpc": asdict(config.rkmpc),
+        "rkmpc_paper": asdict(config.rkmpc_paper),
+        "kmpc_model": config.kmpc_model,
+        "kmpc_samples": config.kmpc_samples,
+        "fault": config.fault,
+        "versions": versions(),
+    }
+    fault = None if config.fault is None else FaultOutcome(config.fault, faulted, effects)
+    return TrackResult(
+        track=scenario.track.name, controllers=runs, training=training, config=record, fault=fault
+    )

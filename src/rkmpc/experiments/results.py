@@ -1,0 +1,173 @@
+"""Typed results of the experiments, each with ``to_json()`` (the layout of ``results.json``).
+
+:class:`TrackResult` is what :func:`rkmpc.experiments.compare.compare` returns
+for one track: the lap of every controller (:class:`ControllerRun`), what was
+learned (:class:`TrainingRecord`: the on-track data and one :class:`ModelRecord`
+per learned controller), the configuration block, and with a fault what it did
+(:class:`FaultOutcome`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+from rkmpc.analysis.metrics import LapMetrics
+from rkmpc.learning.identification import IdentifiedModel
+
+__all__ = ["ControllerRun", "DataRecord", "FaultOutcome", "ModelRecord", "TrackResult", "TrainingRecord"]
+
+
+@dataclass(frozen=True)
+class ControllerRun:
+    """One controller's run: its lap metrics and how the run ended (``completed``, ``off_track``...)."""
+
+    metrics: LapMetrics
+    outcome: str
+
+    def to_json(self) -> dict[str, Any]:
+        return {**self.metrics.to_json(), "outcome": self.outcome}
+
+
+@dataclass(frozen=True)
+class DataRecord:
+    """The on-track data the learned controllers of a track learn from.
+
+    Parameters
+    ----------
+    controller : str
+        Controller that drove the laps (``lmpc``).
+    laps : int
+        Laps asked for.
+    raw_samples : int
+        Transitions recorded.
+    outcome : str
+        How the collection run ended.
+    collect_time_s : float
+        Wall time of the collection (s), for reports only.
+    data_hash : str
+        Content hash of the data set.
+    """
+
+    controller: str
+    laps: int
+    raw_samples: int
+    outcome: str
+    collect_time_s: float
+    data_hash: str
+
+    def to_json(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+@dataclass(frozen=True)
+class ModelRecord:
+    """Where a learned controller's model came from, and what its training saw.
+
+    A model read from a file records only ``model_file``; an identified model its
+    parameters; a trained Koopman model its sample counts, held-out errors, the
+    state range it clips to, and whether it came from the cache.
+    """
+
+    kind: str | None = None
+    model_file: str | None = None
+    raw_samples: int | None = None
+    augmented_samples: int | None = None
+    train_windows: int | None = None
+    holdout_windows: int | None = None
+    fit_time_s: float | None = None
+    heldout_error_step1: float | None = None
+    heldout_error_last: float | None = None
+    state_min: list[float] | None = None
+    state_max: list[float] | None = None
+    collect_time_s: float | None = None
+    identified: IdentifiedModel | None = None
+    cached: bool | None = None
+    cache_key: str | None = None
+
+    #: Fields written even when None (a trained model's held-out errors may be missing).
+    _ALWAYS = ("heldout_error_step1", "heldout_error_last", "cache_key")
+
+    def to_json(self) -> dict[str, Any]:
+        out: dict[str, Any] = {}
+        trained = self.augmented_samples is not None
+        for name in self.__dataclass_fields__:
+            value = getattr(self, name)
+            if value is None and not (trained and name in self._ALWAYS):
+                continue
+            out[name] = asdict(value) if isinstance(value, IdentifiedModel) else value
+        return out
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> ModelRecord:
+        """A record read back from :meth:`to_json` output (the model cache keeps them)."""
+        known = {k: data[k] for k in cls.__dataclass_fields__ if k in data}
+        if isinstance(known.get("identified"), Mapping):
+            known["identified"] = IdentifiedModel(**known["identified"])
+        return cls(**known)
+
+
+@dataclass(frozen=True)
+class TrainingRecord:
+    """What was learned for one track: the on-track data (when any) and a record per model."""
+
+    data: DataRecord | None = None
+    models: dict[str, ModelRecord] = field(default_factory=dict)
+
+    def to_json(self) -> dict[str, Any]:
+        out: dict[str, Any] = {name: record.to_json() for name, record in self.models.items()}
+        if self.data is not None:
+            out = {"data": self.data.to_json(), **out}
+        return out
+
+
+@dataclass(frozen=True)
+class FaultOutcome:
+    """What a fault did: its name, each controller's run with it, and the classification."""
+
+    fault: str
+    runs: dict[str, ControllerRun]
+    effects: dict[str, str]
+
+
+@dataclass(frozen=True)
+class TrackResult:
+    """Every controller on one track (:func:`rkmpc.experiments.compare.compare`).
+
+    Parameters
+    ----------
+    track : str
+        Track name.
+    controllers : dict of str to ControllerRun
+        The nominal run of each controller, in the order driven.
+    training : TrainingRecord
+        Data and models learned.
+    config : dict
+        The configuration block (scenario, runs, seed, settings, versions), plain JSON.
+    fault : FaultOutcome or None
+        The runs with the fault, when one was asked for.
+    """
+
+    track: str
+    controllers: dict[str, ControllerRun]
+    training: TrainingRecord
+    config: dict[str, Any]
+    fault: FaultOutcome | None = None
+
+    def metrics(self) -> dict[str, LapMetrics]:
+        """Lap metrics by controller (what the tables show)."""
+        return {name: run.metrics for name, run in self.controllers.items()}
+
+    def to_json(self) -> dict[str, Any]:
+        out: dict[str, Any] = {
+            "track": self.track,
+            "controllers": {name: run.to_json() for name, run in self.controllers.items()},
+            "training": self.training.to_json(),
+            "config": self.config,
+        }
+        if self.fault is not None:
+            out["fault"] = self.fault.fault
+            out["faulted"] = {name: run.to_json() for name, run in self.fault.runs.items()}
+            out["fault_effect"] = dict(self.fault.effects)
+        return out

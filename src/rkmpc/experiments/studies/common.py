@@ -1,0 +1,122 @@
+"""What both studies share: settings checks, track lists, versions."""
+
+from __future__ import annotations
+
+import math
+import numbers
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+
+from rkmpc.core.errors import ParameterError
+from rkmpc.core.versions import versions
+from rkmpc.experiments.parallel import BACKENDS
+from rkmpc.sim.scenario import VEHICLES
+from rkmpc.track.builtin import list_builtin_tracks
+
+__all__ = [
+    "check_parallel",
+    "check_scale_vehicle",
+    "check_track",
+    "expand_tracks",
+    "int_tuple",
+    "is_int",
+    "positive_real",
+    "str_tuple",
+    "study_versions",
+    "track_label",
+]
+
+
+def is_int(value: Any) -> bool:
+    """An integer that is not a bool."""
+    return isinstance(value, numbers.Integral) and not isinstance(value, bool)
+
+
+def positive_real(value: Any, upper: float = math.inf) -> bool:
+    """True for a finite number in ``(0, upper]`` (not a bool)."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        return False
+    f = float(value)
+    return math.isfinite(f) and 0.0 < f <= upper
+
+
+def int_tuple(name: str, values: Any, *, minimum: int) -> tuple[int, ...]:
+    """``values`` as a non-empty tuple of distinct integers >= ``minimum``; ParameterError naming ``name``."""
+    if isinstance(values, (str, bytes)) or not isinstance(values, Iterable):
+        raise ParameterError(f"{name} must be a sequence of integers, got {values!r}")
+    out = tuple(values)
+    if not out:
+        raise ParameterError(f"{name} must not be empty")
+    for v in out:
+        if not is_int(v) or v < minimum:
+            raise ParameterError(f"{name} must hold integers >= {minimum}, got {v!r}")
+    if len(set(out)) != len(out):
+        raise ParameterError(f"{name} must not repeat values, got {list(out)}")
+    return tuple(int(v) for v in out)
+
+
+def str_tuple(name: str, values: Any) -> tuple[str, ...]:
+    """``values`` (or a comma-separated string) as a non-empty tuple of distinct non-empty strings."""
+    if isinstance(values, str):
+        values = values.split(",")
+    if not isinstance(values, Iterable):
+        raise ParameterError(f"{name} must be a sequence of strings, got {values!r}")
+    out = tuple(values)
+    if not out or not all(isinstance(v, str) and v for v in out):
+        raise ParameterError(f"{name} must be a non-empty sequence of non-empty strings, got {values!r}")
+    if len(set(out)) != len(out):
+        raise ParameterError(f"{name} must not repeat values, got {list(out)}")
+    return out
+
+
+def check_track(spec: str) -> None:
+    """ParameterError unless ``spec`` is a built-in track or an existing file."""
+    if spec in list_builtin_tracks():
+        return
+    if not Path(spec).is_file():
+        raise ParameterError(
+            f"track {spec!r} is neither a built-in track ({', '.join(list_builtin_tracks())}) "
+            "nor an existing centre-line CSV file"
+        )
+
+
+def check_scale_vehicle(scale: Any, vehicle: Any) -> None:
+    """ParameterError for a scale that is not a positive number (or None) or an unknown vehicle."""
+    if scale is not None and not positive_real(scale):
+        raise ParameterError(f"scale must be a positive number or None, got {scale!r}")
+    if vehicle not in VEHICLES:
+        raise ParameterError(f"vehicle must be one of {sorted(VEHICLES)}, got {vehicle!r}")
+
+
+def check_parallel(n_jobs: int, backend: str) -> None:
+    """ParameterError for an unknown backend or a job count that is neither positive nor -1."""
+    if backend not in BACKENDS:
+        raise ParameterError(f"backend must be one of {list(BACKENDS)}, got {backend!r}")
+    if not is_int(n_jobs) or n_jobs == 0 or n_jobs < -1:
+        raise ParameterError(f"n_jobs must be a positive integer or -1, got {n_jobs!r}")
+
+
+def track_label(spec: str) -> str:
+    """Name of a track spec as results show it (built-in name or file stem)."""
+    return Path(spec).stem if spec.lower().endswith(".csv") else spec
+
+
+def expand_tracks(items: Iterable[str | Path]) -> tuple[str, ...]:
+    """Track specs from names, CSV files and folders of CSV files (each gives its ``*.csv``, sorted)."""
+    out: list[str] = []
+    for item in items:
+        path = Path(item)
+        if path.is_dir():
+            found = sorted(str(p) for p in path.glob("*.csv"))
+            if not found:
+                raise ParameterError(f"track folder {path} holds no *.csv file")
+            out.extend(found)
+        else:
+            out.append(str(item))
+    return tuple(out)
+
+
+def study_versions() -> dict[str, str]:
+    """:func:`rkmpc.core.versions.versions` plus the learning and parallel packages."""
+    return versions(extra=("torch", "joblib", "dask", "distributed", "ray"))

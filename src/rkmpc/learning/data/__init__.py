@@ -1,0 +1,1 @@
+"""On-track data: transition data sets, local-frame windows, control residuals, random excitation."""

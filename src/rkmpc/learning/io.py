@@ -1,0 +1,71 @@
+"""Model files by kind: load the model a controller needs, checking its kind and features."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, fields
+from pathlib import Path
+from typing import Any
+
+from rkmpc.core.errors import InputFileError
+from rkmpc.core.io import write_json_atomic
+from rkmpc.learning.identification import IdentifiedModel
+from rkmpc.learning.koopman.model import KoopmanModel
+from rkmpc.learning.recipes import recipe_of_kind
+
+_IDENTIFIED_FORMAT = "rkmpc-identified"
+
+
+def save_identified(model: IdentifiedModel, path: str | Path, metadata: dict[str, Any] | None = None) -> None:
+    """Write an identified model as JSON (temporary file, then renamed)."""
+    write_json_atomic(
+        path, {"format": _IDENTIFIED_FORMAT, "version": 1, "model": asdict(model), "metadata": metadata or {}}
+    )
+
+
+def load_identified(path: str | Path) -> IdentifiedModel:
+    """Read a model written by :func:`save_identified`; clear errors for bad files."""
+    path = Path(path)
+    try:
+        payload = json.loads(path.read_text())
+    except FileNotFoundError:
+        raise InputFileError(path, "file not found") from None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise InputFileError(path, f"not an identified-model JSON file: {exc}") from None
+    if not isinstance(payload, dict) or payload.get("format") != _IDENTIFIED_FORMAT:
+        raise InputFileError(path, f"not an {_IDENTIFIED_FORMAT} file", field="format")
+    data = payload["model"] if isinstance(payload.get("model"), dict) else None
+    names = [f.name for f in fields(IdentifiedModel)]
+    if data is None or sorted(data) != sorted(names):
+        raise InputFileError(path, f"expected the fields {names}", field="model")
+    try:
+        return IdentifiedModel(**data)
+    except (TypeError, ValueError) as exc:
+        raise InputFileError(path, str(exc), field="model") from None
+
+
+def load_model(path: str | Path, kind: str) -> IdentifiedModel | KoopmanModel:
+    """The model of ``kind`` (a recipe's: ``identified``, ``residual``, ``paper``, ``koopman``) at ``path``.
+
+    A Koopman model must say it is of that kind and, when it records its state features, they must
+    be the recipe's (:mod:`rkmpc.learning.features`): a model is never fed other inputs than it was
+    trained on.
+    """
+    recipe = recipe_of_kind(kind)
+    if recipe.learner == "identification":
+        return load_identified(path)
+    model = KoopmanModel.load(path)
+    found = model.metadata_.get("kind")
+    if found != kind:
+        raise InputFileError(
+            path, f"holds a {found!r} model, this controller needs a {kind!r} one", field="kind"
+        )
+    features = model.metadata_.get("features")
+    if isinstance(features, list) and recipe.state is not None and tuple(features) != recipe.state.names:
+        raise InputFileError(
+            path,
+            f"the model was trained on the features {features}, "
+            f"the {kind!r} recipe feeds {list(recipe.state.names)}",
+            field="features",
+        )
+    return model

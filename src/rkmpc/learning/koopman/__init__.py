@@ -1,0 +1,1 @@
+"""Koopman models: the lifted linear model, its liftings, their training and the model file."""

@@ -1,0 +1,115 @@
+"""Collect training transitions by driving a controller in a scenario."""
+
+from __future__ import annotations
+
+from dataclasses import asdict
+from typing import Any
+
+from rkmpc.core.versions import versions
+from rkmpc.learning.data.dataset import TransitionDataset
+from rkmpc.learning.data.excitation import ExcitationConfig, random_excitation
+from rkmpc.sim.run import RunSpec, drive
+from rkmpc.sim.scenario import Scenario, vehicle_preset
+from rkmpc.vehicle.registry import make_plant
+from rkmpc.vehicle.wrappers import NoiseStd
+
+
+def collect(
+    scenario: Scenario,
+    *,
+    controller: str = "lmpc",
+    laps: int = 2,
+    seed: int = 0,
+    noise: NoiseStd | None = None,
+) -> TransitionDataset:
+    """Drive ``controller`` for ``laps`` laps and return the logged transitions.
+
+    The run is :func:`rkmpc.sim.run.drive` with
+    ``RunSpec(controller, laps=laps, seed=seed, noise=noise)``; its step log
+    becomes one episode (:meth:`TransitionDataset.from_log`). Observations are
+    what the controller saw (noisy when ``noise`` is given); commands are the
+    set-points it sent. A run that ends early (off track, timeout) still
+    returns its data; the outcome is in the metadata.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        Track, car and reference.
+    controller : str
+        Controller registry name (``"lmpc"``, ``"pp"``, ...).
+    laps : int
+        Laps to drive (>= 1).
+    seed : int
+        Seed of the run (measurement noise).
+    noise : NoiseStd or None
+        Measurement noise, or None for exact observations.
+
+    Returns
+    -------
+    TransitionDataset
+        With metadata ``vehicle``, ``track``, ``scale``, ``dt`` (s),
+        ``wheelbase`` (m), ``seed``, ``controller``, ``laps``, ``noise``,
+        ``outcome``, ``completed``, ``progress_laps``, ``lap_times``,
+        ``rkmpc_version``, ``versions`` and ``source = "collect"``.
+    """
+    spec = RunSpec(controller, laps=laps, seed=seed, noise=noise)
+    result = drive(scenario, spec)
+    all_versions = versions()
+    metadata: dict[str, Any] = {
+        "source": "collect",
+        "vehicle": scenario.vehicle_name,
+        "track": scenario.track.name,
+        "scale": scenario.track.scale,
+        "dt": scenario.dt,
+        "wheelbase": scenario.vehicle.wheelbase,
+        "seed": seed,
+        "controller": controller,
+        "laps": laps,
+        "noise": None if noise is None else asdict(noise),
+        "outcome": result.outcome,
+        "completed": result.completed,
+        "progress_laps": result.progress,
+        "lap_times": [float(t) for t in result.lap_times],
+        "fallback_count": result.fallback_count,
+        "rkmpc_version": all_versions["rkmpc"],
+        "versions": all_versions,
+    }
+    return TransitionDataset.from_log(result.log, metadata=metadata, dt=scenario.dt)
+
+
+def collect_excitation(scenario: Scenario, *, n_samples: int = 50_000, seed: int = 0) -> TransitionDataset:
+    """Random-excitation transitions of the scenario's car in open space (for KMPC).
+
+    Speeds are drawn within the scenario's speed limits and wheel angles within
+    90 % of the steering limit; see :mod:`rkmpc.learning.data.excitation`.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        Supplies the car, its plant and its speed limits (the track is unused).
+    n_samples : int
+        Transitions to record.
+    seed : int
+        Seed of every random choice.
+    """
+    config = ExcitationConfig(
+        n_samples=n_samples,
+        speed_range=(scenario.limits.min_speed, scenario.limits.max_speed),
+        seed=seed,
+    )
+    plant = make_plant(vehicle_preset(scenario.vehicle_name).plant)
+    obs, command, next_obs, episode = random_excitation(plant, config, dt=scenario.dt)
+    all_versions = versions()
+    metadata: dict[str, Any] = {
+        "source": "excitation",
+        "vehicle": scenario.vehicle_name,
+        "dt": scenario.dt,
+        "wheelbase": scenario.vehicle.wheelbase,
+        "seed": seed,
+        "excitation": asdict(config),
+        "rkmpc_version": all_versions["rkmpc"],
+        "versions": all_versions,
+    }
+    return TransitionDataset(
+        obs=obs, command=command, next_obs=next_obs, dt=scenario.dt, episode=episode, metadata=metadata
+    )

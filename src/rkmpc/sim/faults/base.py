@@ -1,0 +1,60 @@
+"""The fault interface: a change of the simulated car that the controllers are not told about."""
+
+from __future__ import annotations
+
+import math
+from abc import ABC, abstractmethod
+from dataclasses import asdict
+from typing import Any, ClassVar
+
+from rkmpc.core.errors import ParameterError
+from rkmpc.sim.scenario import Scenario
+from rkmpc.vehicle.plants.base import Plant
+
+
+def _finite_positive(owner: str, name: str, value: float) -> None:
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise ParameterError(f"{owner}.{name} must be a number, got {value!r}")
+    if not (math.isfinite(value) and value > 0.0):
+        raise ParameterError(f"{owner}.{name} must be finite and > 0, got {value!r}")
+
+
+class Fault(ABC):
+    """A change of the simulated car that the controllers are not told about.
+
+    Attributes
+    ----------
+    name : str
+        The fault's name in :data:`FAULTS`.
+    """
+
+    name: ClassVar[str]
+
+    @abstractmethod
+    def apply(self, plant: Plant, scenario: Scenario, seed: int) -> Plant:
+        """Return the faulty version of ``plant``; ``plant`` itself is not changed.
+
+        Parameters
+        ----------
+        plant : Plant
+            The nominal plant of ``scenario``.
+        scenario : Scenario
+            The scenario (track, control period) the plant drives in.
+        seed : int
+            The run's seed; every random choice of the fault is drawn from it.
+
+        Returns
+        -------
+        Plant
+            A wrapper around ``plant``, or a new plant (reset to the origin) of
+            the same kind and options.
+
+        Raises
+        ------
+        ParameterError
+            If the fault cannot apply to this plant or scenario.
+        """
+
+    def describe(self) -> dict[str, Any]:
+        """JSON-ready record of the fault: ``{"name": ..., "parameters": {...}}``."""
+        return {"name": self.name, "parameters": asdict(self)}  # type: ignore[call-overload]

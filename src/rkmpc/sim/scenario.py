@@ -1,0 +1,187 @@
+"""A scenario: a track, a car, its plant and the reference it drives.
+
+This is the glue between the command line (or a script) and the library: it
+names the vehicle presets and their default speed limits in one place.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from rkmpc.control.linear.lmpc import LMPCConfig
+from rkmpc.control.pure_pursuit import PurePursuitConfig
+from rkmpc.track.builtin import builtin_track, list_builtin_tracks
+from rkmpc.track.loaders import load_raceline, load_track
+from rkmpc.track.reference import Reference
+from rkmpc.track.speed_profile import SpeedLimits, speed_profile
+from rkmpc.track.track import Track
+from rkmpc.vehicle.params import VehicleParams, f1tenth, fullsize
+
+
+@dataclass(frozen=True)
+class VehiclePreset:
+    """A named car: its parameters, the plant that simulates it and its driving limits.
+
+    Parameters
+    ----------
+    params : callable
+        Returns the car's :class:`VehicleParams`.
+    plant : str
+        Name of the plant in :data:`rkmpc.vehicle.plants.base.PLANTS`.
+    limits : SpeedLimits
+        Default limits of the speed profile for this car.
+    file_scale : float
+        Default scale for track files (the TUM tracks are full size).
+    controller_options : mapping
+        Options tuned for this car, by controller name, passed to
+        :func:`rkmpc.control.make_controller` unless the caller gives its own.
+    """
+
+    params: Callable[[], VehicleParams]
+    plant: str
+    limits: SpeedLimits
+    file_scale: float
+    controller_options: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
+
+    def options_for(self, controller: str) -> dict[str, Any]:
+        """The options tuned for ``controller`` on this car (none for most controllers)."""
+        return dict(self.controller_options[controller]) if controller in self.controller_options else {}
+
+
+#: Vehicle presets by name.
+VEHICLES: dict[str, VehiclePreset] = {
+    "f1tenth": VehiclePreset(
+        params=f1tenth,
+        plant="f1tenth",
+        limits=SpeedLimits(
+            lateral_accel=4.0, brake_decel=2.5, accel=2.5, max_speed=3.5, min_speed=0.5, curvature_rate=1.0
+        ),
+        file_scale=0.1,
+    ),
+    "fullsize": VehiclePreset(
+        params=fullsize,
+        plant="fullsize",
+        limits=SpeedLimits(
+            lateral_accel=6.0, brake_decel=3.0, accel=2.0, max_speed=25.0, min_speed=2.0, curvature_rate=0.05
+        ),
+        file_scale=1.0,
+        # Position errors are ten times larger than at 1:10 while wheel angles are alike,
+        # so the steering weights grow by about a hundred; the look-ahead grows with speed.
+        controller_options={
+            "lmpc": {"config": LMPCConfig(steer_weight=200.0, steer_rate_weight=100.0)},
+            "pp": {"config": PurePursuitConfig(min_lookahead=3.0, lookahead_gain=0.8, max_lookahead=40.0)},
+        },
+    ),
+}
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """Everything a closed-loop run needs besides the controller.
+
+    Parameters
+    ----------
+    track : Track
+        Track geometry and boundaries.
+    vehicle_name : str
+        Key of :data:`VEHICLES`.
+    vehicle : VehicleParams
+        The car.
+    limits : SpeedLimits
+        Limits of the speed profile.
+    reference : Reference
+        Time-indexed reference along the track's reference path.
+    dt : float
+        Control period (s).
+    """
+
+    track: Track
+    vehicle_name: str
+    vehicle: VehicleParams
+    limits: SpeedLimits
+    reference: Reference
+    dt: float
+
+    def describe(self) -> dict[str, object]:
+        """A JSON-ready description for result files."""
+        return {
+            "track": self.track.name,
+            "track_source": self.track.source,
+            "scale": self.track.scale,
+            "track_length_m": self.track.reference_path.length,
+            "raceline": self.track.raceline is not None,
+            "vehicle": self.vehicle_name,
+            "speed_limits": {
+                "lateral_accel": self.limits.lateral_accel,
+                "brake_decel": self.limits.brake_decel,
+                "accel": self.limits.accel,
+                "max_speed": self.limits.max_speed,
+                "min_speed": self.limits.min_speed,
+            },
+            "dt": self.dt,
+        }
+
+
+def vehicle_preset(name: str) -> VehiclePreset:
+    """The preset named ``name`` (``"f1tenth"`` or ``"fullsize"``)."""
+    try:
+        return VEHICLES[name]
+    except KeyError:
+        raise ValueError(f"unknown vehicle {name!r}; known: {sorted(VEHICLES)}") from None
+
+
+def load_scenario(
+    track: str | Path = "builtin",
+    *,
+    raceline: str | Path | None = None,
+    scale: float | None = None,
+    vehicle: str = "f1tenth",
+    limits: SpeedLimits | None = None,
+    dt: float = 0.05,
+) -> Scenario:
+    """Build a scenario from a track name or file and a vehicle preset.
+
+    Parameters
+    ----------
+    track : str or Path
+        A built-in track name (see :func:`rkmpc.track.builtin.list_builtin_tracks`)
+        or the path of a TUM-format centre-line CSV file.
+    raceline : str or Path, optional
+        A TUM-format race-line CSV; when given, the car tracks it instead of
+        the centre line.
+    scale : float, optional
+        Scale applied to track files; defaults to the vehicle's (0.1 for the
+        1:10 car). Built-in tracks are already at 1:10 and default to 1.0.
+    vehicle : str
+        Vehicle preset name.
+    limits : SpeedLimits, optional
+        Speed-profile limits; defaults to the vehicle preset's.
+    dt : float
+        Control period (s).
+    """
+    preset = vehicle_preset(vehicle)
+    params = preset.params()
+    if str(track) in list_builtin_tracks():
+        the_track = builtin_track(str(track))
+        if scale is not None and scale != 1.0:
+            raise ValueError("built-in tracks are generated at their own scale; --scale applies to files")
+        if raceline is not None:
+            the_track = the_track.with_raceline(load_raceline(raceline, scale=1.0))
+    else:
+        file_scale = preset.file_scale if scale is None else scale
+        the_track = load_track(track, raceline, scale=file_scale)
+    the_limits = limits if limits is not None else preset.limits
+    path = the_track.reference_path
+    profile = speed_profile(path, the_limits)
+    reference = Reference(path, profile, params.wheelbase)
+    return Scenario(
+        track=the_track,
+        vehicle_name=vehicle,
+        vehicle=params,
+        limits=the_limits,
+        reference=reference,
+        dt=dt,
+    )

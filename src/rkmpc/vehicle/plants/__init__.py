@@ -1,0 +1,1 @@
+"""Simulated cars: the plant interface and the F1TENTH and full-size plants."""

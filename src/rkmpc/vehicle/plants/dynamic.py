@@ -1,0 +1,275 @@
+"""Dynamic single-track plant of a 1:10 car (stand-in for CarSim / the real F1TENTH car).
+
+State ``[x, y, yaw, v, beta, yaw_rate, delta]``: position of the centre of
+gravity (m), heading (rad), speed magnitude at the centre of gravity (m/s),
+side-slip angle (rad), yaw rate (rad/s) and actual front wheel angle (rad).
+
+Equations (``L = lf + lr``, ``w`` the blending weight below):
+
+* kinematics: ``xdot = v cos(yaw + beta)``, ``ydot = v sin(yaw + beta)``;
+* speed loop: ``vdot = a = clip((v_cmd - v) / tau_v, -max_brake, max_accel)``,
+  the speed never becomes negative; ``a`` is the tangential acceleration;
+* steering servo: ``deltadot = clip((delta_cmd - delta) / tau_s, -max_rate, max_rate)``
+  with ``delta_cmd`` clipped to ``+-max_angle``;
+* dynamic part: slip angles
+  ``alpha_f = delta - atan((v sin(beta) + lf r) / (v cos(beta)))``,
+  ``alpha_r = -atan((v sin(beta) - lr r) / (v cos(beta)))``, loads
+  ``Fz_f = m (g lr - a h_cg) / L``, ``Fz_r = m (g lf + a h_cg) / L``, Pacejka
+  lateral forces (:func:`rkmpc.vehicle.tyres.pacejka_lateral_force`) and
+
+  ``betadot = (Fy_f cos(delta - beta) + Fy_r cos(beta)) / (m v) - r``,
+  ``rdot = (lf Fy_f cos(delta) - lr Fy_r) / Iz``, ``yawdot = r``;
+* kinematic part: ``beta_k = atan(lr tan(delta) / L)``,
+  ``r_k = v cos(beta_k) tan(delta) / L``, ``yawdot = r_k``, with ``beta`` and
+  ``r`` following the time derivatives of ``beta_k`` and ``r_k`` plus a fast
+  relaxation (time constant 20 ms) towards them, so the state is consistent
+  when the car slows down from the dynamic regime;
+* ``w = clip((v - blend_speed_low) / (blend_speed_high - blend_speed_low), 0, 1)``
+  blends the yaw, side-slip and yaw-rate derivatives linearly, like the
+  blended models of CommonRoad and ForzaETH.
+
+Integration is classic RK4 with ``internal_dt`` substeps in plain scalar
+Python (``math``), independent of the control period.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+import numpy as np
+
+from rkmpc.core.observation import Observation
+from rkmpc.vehicle.friction import FrictionSchedule
+from rkmpc.vehicle.params import VehicleParams, f1tenth
+from rkmpc.vehicle.plants.base import ActuatedPlant
+
+__all__ = ["DynamicPlant"]
+
+#: Time constant (s) with which side-slip and yaw rate relax to their kinematic values.
+KINEMATIC_RELAXATION_TIME = 0.02
+
+_Derivative = tuple[float, float, float, float, float, float, float]
+_Rhs = Callable[[float, float, float, float, float, float, float, float], _Derivative]
+
+
+def _build_rhs(p: VehicleParams) -> _Rhs:
+    """Return the right-hand side ``f(yaw, v, beta, r, delta, v_cmd, delta_cmd, mu)``.
+
+    The constants are bound as closure variables so the inner loop touches
+    no attributes. ``v_cmd`` and ``delta_cmd`` must already be clipped to the
+    actuator limits.
+    """
+    sin, cos, tan, atan = math.sin, math.cos, math.tan, math.atan
+    mass = p.mass
+    inertia = p.yaw_inertia
+    lf, lr = p.lf, p.lr
+    length = p.wheelbase
+    lr_frac = lr / length
+    fz_f_static = mass * p.gravity * lr / length
+    fz_r_static = mass * p.gravity * lf / length
+    load_shift = mass * p.h_cg / length
+    bf, cf, df, ef = p.tyre_front.B, p.tyre_front.C, p.tyre_front.D, p.tyre_front.E
+    br, cr, d_rear, er = p.tyre_rear.B, p.tyre_rear.C, p.tyre_rear.D, p.tyre_rear.E
+    tau_v = p.drive.time_constant
+    max_accel, max_brake = p.drive.max_accel, p.drive.max_brake
+    tau_s = p.steering.time_constant
+    max_rate = p.steering.max_rate
+    v_low = p.blend_speed_low
+    inv_blend = 1.0 / (p.blend_speed_high - p.blend_speed_low)
+    inv_relax = 1.0 / KINEMATIC_RELAXATION_TIME
+    v_floor = 1e-3
+
+    def rhs(
+        yaw: float, v: float, beta: float, r: float, delta: float, v_cmd: float, delta_cmd: float, mu: float
+    ) -> _Derivative:
+        # Actuators.
+        acc = (v_cmd - v) / tau_v
+        if acc > max_accel:
+            acc = max_accel
+        elif acc < -max_brake:
+            acc = -max_brake
+        if v <= 0.0 and acc < 0.0:
+            acc = 0.0
+        ddelta = (delta_cmd - delta) / tau_s
+        if ddelta > max_rate:
+            ddelta = max_rate
+        elif ddelta < -max_rate:
+            ddelta = -max_rate
+
+        heading = yaw + beta
+        dx = v * cos(heading)
+        dy = v * sin(heading)
+
+        w = (v - v_low) * inv_blend
+        if w < 0.0:
+            w = 0.0
+        elif w > 1.0:
+            w = 1.0
+
+        dyaw = dbeta = dr = 0.0
+        if w < 1.0:
+            tan_d = tan(delta)
+            cos_d = cos(delta)
+            sec2 = 1.0 / (cos_d * cos_d)
+            q = lr_frac * tan_d
+            beta_k = atan(q)
+            cos_bk = cos(beta_k)
+            dbeta_k = lr_frac * sec2 * ddelta / (1.0 + q * q)
+            r_k = v * cos_bk * tan_d / length
+            dr_k = (
+                acc * cos_bk * tan_d - v * sin(beta_k) * dbeta_k * tan_d + v * cos_bk * sec2 * ddelta
+            ) / length
+            wk = 1.0 - w
+            dyaw = wk * r_k
+            dbeta = wk * (dbeta_k + (beta_k - beta) * inv_relax)
+            dr = wk * (dr_k + (r_k - r) * inv_relax)
+        if w > 0.0:
+            cos_b = cos(beta)
+            vx = v * cos_b
+            if vx < v_floor:
+                vx = v_floor
+            vy = v * sin(beta)
+            alpha_f = delta - atan((vy + lf * r) / vx)
+            alpha_r = -atan((vy - lr * r) / vx)
+            shift = load_shift * acc
+            ba = bf * alpha_f
+            fy_f = mu * (fz_f_static - shift) * df * sin(cf * atan(ba - ef * (ba - atan(ba))))
+            ba = br * alpha_r
+            fy_r = mu * (fz_r_static + shift) * d_rear * sin(cr * atan(ba - er * (ba - atan(ba))))
+            dyaw += w * r
+            dbeta += w * ((fy_f * cos(delta - beta) + fy_r * cos_b) / (mass * v) - r)
+            dr += w * (lf * fy_f * cos(delta) - lr * fy_r) / inertia
+        return dx, dy, dyaw, acc, dbeta, dr, ddelta
+
+    return rhs
+
+
+class DynamicPlant(ActuatedPlant):
+    """Blended kinematic/dynamic single-track car with Pacejka tyres and actuators.
+
+    See the module docstring for the equations.
+
+    Parameters
+    ----------
+    params : VehicleParams or None, optional
+        Car parameters; :func:`rkmpc.vehicle.params.f1tenth` when None.
+    internal_dt : float, optional
+        RK4 substep (s); each call of :meth:`step` uses ``ceil(dt / internal_dt)``
+        substeps, the last one shorter when ``dt`` is not a multiple.
+    input_delay : float, optional
+        Delay (s) between :meth:`step` receiving a command and the actuators
+        seeing it; 0 for none.
+    friction : FrictionSchedule or None, optional
+        Multiplier of ``params.mu`` as a function of time and position,
+        evaluated at the start of every substep; None for constant friction.
+
+    Attributes
+    ----------
+    STATE_NAMES : tuple of str
+        ``("x", "y", "yaw", "v", "beta", "yaw_rate", "delta")``.
+    """
+
+    STATE_NAMES: tuple[str, ...] = ("x", "y", "yaw", "v", "beta", "yaw_rate", "delta")
+
+    def __init__(
+        self,
+        params: VehicleParams | None = None,
+        *,
+        internal_dt: float = 1e-3,
+        input_delay: float = 0.0,
+        friction: FrictionSchedule | None = None,
+    ) -> None:
+        vehicle = f1tenth() if params is None else params
+        self._rhs = _build_rhs(vehicle)
+        self._s: list[float] = [0.0] * 7
+        super().__init__(vehicle, internal_dt=internal_dt, input_delay=input_delay, friction=friction)
+
+    def _reset_state(self, x: float, y: float, yaw: float, speed: float, steer: float) -> None:
+        length = self.params.wheelbase
+        beta = math.atan(self.params.lr / length * math.tan(steer))
+        yaw_rate = speed * math.cos(beta) * math.tan(steer) / length
+        self._s = [x, y, yaw, speed, beta, yaw_rate, steer]
+
+    def _advance(self, duration: float, setpoint: tuple[float, float]) -> None:
+        if duration <= 0.0:
+            return
+        drive = self.params.drive
+        steering = self.params.steering
+        v_cmd = min(max(setpoint[0], drive.min_speed), drive.max_speed)
+        d_cmd = min(max(setpoint[1], -steering.max_angle), steering.max_angle)
+        mu0 = self.params.mu
+        rhs = self._rhs
+        h_nominal = self.internal_dt
+        n_steps = max(1, math.ceil(duration / h_nominal - 1e-9))
+        x, y, yaw, v, beta, r, delta = self._s
+        t = self._time
+        for i in range(n_steps):
+            h = h_nominal if i < n_steps - 1 else duration - h_nominal * (n_steps - 1)
+            mu = mu0 if self.friction is None else mu0 * self.friction(t, x, y)
+            hh = 0.5 * h
+            k1 = rhs(yaw, v, beta, r, delta, v_cmd, d_cmd, mu)
+            k2 = rhs(
+                yaw + hh * k1[2],
+                v + hh * k1[3],
+                beta + hh * k1[4],
+                r + hh * k1[5],
+                delta + hh * k1[6],
+                v_cmd,
+                d_cmd,
+                mu,
+            )
+            k3 = rhs(
+                yaw + hh * k2[2],
+                v + hh * k2[3],
+                beta + hh * k2[4],
+                r + hh * k2[5],
+                delta + hh * k2[6],
+                v_cmd,
+                d_cmd,
+                mu,
+            )
+            k4 = rhs(
+                yaw + h * k3[2],
+                v + h * k3[3],
+                beta + h * k3[4],
+                r + h * k3[5],
+                delta + h * k3[6],
+                v_cmd,
+                d_cmd,
+                mu,
+            )
+            h6 = h / 6.0
+            x += h6 * (k1[0] + 2.0 * (k2[0] + k3[0]) + k4[0])
+            y += h6 * (k1[1] + 2.0 * (k2[1] + k3[1]) + k4[1])
+            yaw += h6 * (k1[2] + 2.0 * (k2[2] + k3[2]) + k4[2])
+            v += h6 * (k1[3] + 2.0 * (k2[3] + k3[3]) + k4[3])
+            beta += h6 * (k1[4] + 2.0 * (k2[4] + k3[4]) + k4[4])
+            r += h6 * (k1[5] + 2.0 * (k2[5] + k3[5]) + k4[5])
+            delta += h6 * (k1[6] + 2.0 * (k2[6] + k3[6]) + k4[6])
+            if v < 0.0:
+                v = 0.0
+            t += h
+        self._s = [x, y, yaw, v, beta, r, delta]
+
+    def observe(self) -> Observation:
+        """True observation; ``speed`` is the velocity along the heading, ``v cos(beta)``."""
+        x, y, yaw, v, beta, r, delta = self._s
+        return Observation(
+            x=x,
+            y=y,
+            yaw=yaw,
+            speed=v * math.cos(beta),
+            yaw_rate=r,
+            slip_angle=beta,
+            steer_angle=delta,
+            time=self._time,
+        )
+
+    @property
+    def state(self) -> np.ndarray:
+        return np.array(self._s, dtype=float)
+
+    @property
+    def wheel_angle(self) -> float:
+        return self._s[6]

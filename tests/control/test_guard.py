@@ -1,0 +1,218 @@
+"""CommandGuard (bounds, steering-rate limit, fall-back plan) and WheelAngleEstimate (servo model)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose, assert_array_equal
+
+from rkmpc.control.guard import CommandGuard, WheelAngleEstimate
+from rkmpc.vehicle.params import f1tenth
+
+DT = 0.05
+HORIZON = 4
+
+
+@pytest.fixture
+def vehicle():
+    return f1tenth()
+
+
+@pytest.fixture
+def guard(vehicle):
+    return CommandGuard(vehicle, DT, HORIZON)
+
+
+def _plan(n: int = HORIZON) -> np.ndarray:
+    """A plan whose rows are easy to tell apart: ``[1 + k, 0.01 * k]``."""
+    k = np.arange(n, dtype=float)
+    return np.column_stack([1.0 + k, 0.01 * k])
+
+
+def test_bounds_and_step_come_from_the_vehicle(guard, vehicle):
+    assert_array_equal(guard.u_min, [vehicle.drive.min_speed, -vehicle.steering.max_angle])
+    assert_array_equal(guard.u_max, [vehicle.drive.max_speed, vehicle.steering.max_angle])
+    assert guard.steer_step_max == pytest.approx(vehicle.steering.max_rate * DT)
+    assert guard.previous is None
+
+
+def test_first_command_is_clipped_to_the_bounds_without_rate_limit(guard, vehicle):
+    max_angle = vehicle.steering.max_angle
+    # Far beyond one steering step (0.16 rad): no previous command, so only the angle bound applies.
+    out = guard.apply(np.array([100.0, 5.0]))
+    assert_array_equal(out, [vehicle.drive.max_speed, max_angle])
+    assert out.dtype == np.float64 and out.shape == (2,)
+    guard.reset()
+    out = guard.apply(np.array([-3.0, -0.35]))
+    assert_array_equal(out, [vehicle.drive.min_speed, -0.35])
+    assert abs(out[1]) > guard.steer_step_max
+
+
+def test_inside_the_bounds_the_command_passes_unchanged(guard):
+    out = guard.apply(np.array([2.5, 0.1]))
+    assert_array_equal(out, [2.5, 0.1])
+    assert_array_equal(guard.previous, out)
+
+
+def test_steering_rate_is_limited_against_the_previous_applied_command(guard):
+    step = guard.steer_step_max
+    guard.apply(np.array([2.0, 0.0]))
+    out = guard.apply(np.array([2.0, 0.4]))
+    assert out[1] == pytest.approx(step)
+    # The limit is relative to the last *applied* command, not to the last requested one.
+    out = guard.apply(np.array([2.0, 0.4]))
+    assert out[1] == pytest.approx(2 * step)
+    out = guard.apply(np.array([2.0, -0.4]))
+    assert out[1] == pytest.approx(step)
+    # Within one step of the previous command the request passes as is.
+    out = guard.apply(np.array([2.0, step + 0.5 * step]))
+    assert out[1] == pytest.approx(1.5 * step)
+    # The speed is never rate limited.
+    assert guard.apply(np.array([7.5, 1.5 * step]))[0] == 7.5
+
+
+def test_angle_bound_applies_after_the_rate_limit(guard, vehicle):
+    max_angle = vehicle.steering.max_angle
+    guard.apply(np.array([1.0, max_angle]))
+    out = guard.apply(np.array([1.0, 10.0]))
+    assert out[1] == pytest.approx(max_angle)
+
+
+def test_apply_returns_a_new_array_and_remembers_it(guard):
+    u = np.array([2.0, 0.05])
+    out = guard.apply(u)
+    assert out is not u
+    assert_array_equal(guard.previous, [2.0, 0.05])
+    assert_array_equal(u, [2.0, 0.05])
+
+
+def test_nan_stays_nan_as_with_numpy_clip(guard, vehicle):
+    out = guard.apply(np.array([math.nan, 1.0]))
+    assert math.isnan(out[0])
+    assert out[1] == pytest.approx(vehicle.steering.max_angle)
+    guard.reset()
+    guard.apply(np.array([2.0, 0.0]))
+    out = guard.apply(np.array([2.0, math.nan]))
+    assert out[0] == 2.0 and math.isnan(out[1])
+    # A NaN command does not poison the next finite one: it is finite and within the bounds.
+    out = guard.apply(np.array([50.0, -3.0]))
+    assert np.isfinite(out).all()
+    assert_array_equal(out, [vehicle.drive.max_speed, -vehicle.steering.max_angle])
+
+
+def test_accept_keeps_the_plan_and_returns_its_first_input(guard):
+    plan = _plan()
+    first = guard.accept(plan)
+    assert_array_equal(first, plan[0])
+    assert first.dtype == np.float64
+    first[0] = -99.0
+    assert plan[0, 0] == 1.0  # a copy, not a view of the plan
+    # The stored plan is what the fall-back walks.
+    assert_array_equal(guard.fallback(np.array([9.0, 9.0])), plan[1])
+
+
+def test_fallback_walks_the_plan_one_step_per_call_then_returns_u_ref(guard):
+    plan = _plan()
+    u_ref = np.array([3.0, -0.2])
+    guard.accept(plan)
+    for k in range(1, HORIZON):
+        assert_array_equal(guard.fallback(u_ref), plan[k])
+    # The plan is now as old as the horizon: the reference input from here on.
+    for _ in range(3):
+        out = guard.fallback(u_ref)
+        assert_array_equal(out, u_ref)
+        assert out is not u_ref
+
+
+def test_a_new_plan_restarts_the_fallback(guard):
+    u_ref = np.array([3.0, -0.2])
+    guard.accept(_plan())
+    for _ in range(HORIZON + 2):
+        guard.fallback(u_ref)
+    plan = _plan() + 10.0
+    assert_array_equal(guard.accept(plan), plan[0])
+    assert_array_equal(guard.fallback(u_ref), plan[1])
+    assert_array_equal(guard.fallback(u_ref), plan[2])
+
+
+def test_fallback_without_a_plan_returns_u_ref_as_floats(guard):
+    out = guard.fallback([1, 0])
+    assert_array_equal(out, [1.0, 0.0])
+    assert out.dtype == np.float64
+
+
+def test_reset_forgets_plan_and_previous_command(guard):
+    guard.accept(_plan())
+    guard.apply(np.array([2.0, 0.0]))
+    guard.reset()
+    assert guard.previous is None
+    u_ref = np.array([0.7, 0.03])
+    assert_array_equal(guard.fallback(u_ref), u_ref)
+    # No rate limit after a reset either.
+    out = guard.apply(np.array([2.0, 0.4]))
+    assert out[1] == pytest.approx(0.4)
+
+
+# ---------------------------------------------------------------------------- WheelAngleEstimate
+
+
+def test_wheel_angle_estimate_returns_a_finite_measurement():
+    est = WheelAngleEstimate(0.158, DT)
+    assert est(0.123, np.array([1.0, -0.3])) == 0.123
+    assert est(-0.2, None) == -0.2
+
+
+def test_wheel_angle_estimate_filter_constant():
+    est = WheelAngleEstimate(0.2, 0.05)
+    assert est.a == pytest.approx(math.exp(-0.25))
+
+
+def test_wheel_angle_estimate_is_a_first_order_lag_of_the_commands():
+    tau = 0.158
+    est = WheelAngleEstimate(tau, DT)
+    a = math.exp(-DT / tau)
+    rng = np.random.default_rng(7)
+    commands = np.column_stack([np.full(30, 2.0), rng.uniform(-0.4, 0.4, 30)])
+    # Starts at the previous command.
+    expected = commands[0, 1]
+    assert est(math.nan, commands[0]) == pytest.approx(expected)
+    for cmd in commands[1:]:
+        expected = a * expected + (1.0 - a) * cmd[1]
+        assert est(math.nan, cmd) == pytest.approx(expected, rel=1e-12, abs=1e-15)
+
+
+def test_wheel_angle_estimate_converges_to_a_held_command():
+    est = WheelAngleEstimate(0.1, DT)
+    est(math.nan, np.array([1.0, 0.0]))
+    cmd = np.array([1.0, 0.3])
+    values = [est(math.nan, cmd) for _ in range(60)]
+    assert np.all(np.diff(values) > 0)
+    assert values[0] == pytest.approx((1 - math.exp(-0.5)) * 0.3)
+    assert values[-1] == pytest.approx(0.3, abs=1e-9)
+
+
+def test_wheel_angle_estimate_without_commands_is_zero():
+    est = WheelAngleEstimate(0.158, DT)
+    assert est(math.nan, None) == 0.0
+
+
+def test_wheel_angle_estimate_reset_restarts_at_the_previous_command():
+    est = WheelAngleEstimate(0.158, DT)
+    est(math.nan, np.array([1.0, 0.3]))
+    lagged = est(math.nan, np.array([1.0, -0.3]))
+    assert lagged != pytest.approx(-0.3)
+    est.reset()
+    assert est(math.nan, np.array([1.0, -0.3])) == pytest.approx(-0.3)
+
+
+def test_wheel_angle_estimate_measurement_does_not_disturb_the_model():
+    tau = 0.158
+    a = math.exp(-DT / tau)
+    est = WheelAngleEstimate(tau, DT)
+    est(math.nan, np.array([1.0, 0.2]))
+    assert est(0.05, np.array([1.0, -0.1])) == 0.05
+    # With the measurement missing again the model continues from its own last estimate.
+    assert est(math.inf, np.array([1.0, -0.1])) == pytest.approx(a * 0.2 + (1 - a) * -0.1)
+    assert_allclose(est(math.nan, np.array([1.0, -0.1])), a * (a * 0.2 + (1 - a) * -0.1) + (1 - a) * -0.1)
