@@ -99,3 +99,17 @@ def test_every_recipe_is_complete_and_unique():
         recipe_of_kind("identified").default_model(seed=0)
     with pytest.raises(ParameterError, match="unknown model kind"):
         recipe_of_kind("quantum")
+
+
+def test_the_understeer_model_of_the_fit_is_the_one_lmpc_id_drives_with():
+    """Identify K on data made by the model itself: the fit must give it back exactly (any L, v, kappa)."""
+    from rkmpc.learning.identification import steady_state_steer, understeer_excess
+
+    rng = np.random.default_rng(2)
+    wheelbase, gradient = 0.307, 0.012
+    v = rng.uniform(1.0, 6.0, 500)
+    kappa = rng.uniform(-1.5, 1.5, 500)
+    steer = steady_state_steer(kappa, v, wheelbase, gradient)
+    yaw_rate = v * kappa
+    excess = understeer_excess(steer, v, yaw_rate, wheelbase)
+    np.testing.assert_allclose(excess, gradient * v * yaw_rate, rtol=1e-10, atol=1e-12)

@@ -3,6 +3,14 @@
 This is what a skeptical engineer identifies from the same laps before reaching
 for a neural network: the steering servo's first-order time constant and the
 understeer gradient of the car, both by linear least squares.
+
+The understeer model is defined once, here, and used both by the fit and by the
+controller that drives with it (``lmpc-id``): the path curvature a wheel angle
+``delta`` produces at speed ``v`` is ``tan(delta) / (L + K v^2)``
+(:func:`effective_wheelbase`), so steady cornering on curvature ``kappa`` needs
+``delta = atan((L + K v^2) kappa)`` (:func:`steady_state_steer`), and on data the
+part of ``tan(delta)`` beyond the kinematic ``L r / v`` is ``K v r``
+(:func:`understeer_excess`).
 """
 
 from __future__ import annotations
@@ -40,8 +48,10 @@ class IdentifiedModel:
     servo_time_constant : float
         First-order time constant of the steering servo (s).
     understeer_gradient : float
-        Extra wheel angle per unit lateral acceleration (rad per m/s^2):
-        steady cornering needs ``delta = atan(L * kappa) + K * v^2 * kappa``.
+        ``K`` (s^2/m, that is m per (m/s)^2): the effective wheelbase grows as
+        ``L + K v^2``, so steady cornering needs ``tan(delta) = (L + K v^2) kappa``
+        (:func:`steady_state_steer`); for small angles, the extra wheel angle per unit
+        lateral acceleration (rad per m/s^2).
     servo_fit_r2, understeer_fit_r2 : float
         Coefficients of determination of the two fits.
     n_samples : int
@@ -84,8 +94,9 @@ def identify(data: _Transitions, wheelbase: float, *, min_speed: float = 1.0) ->
     -----
     Servo: ``delta_{k+1} - delta_k = b (delta_cmd,k - delta_k)`` by least
     squares, then ``tau = -T / ln(1 - b)`` (exact for a first-order lag held
-    over the period T). Understeer: ``delta_k - atan(L r_k / v_k) = K v_k r_k``
-    (the wheel angle beyond the kinematic one, against lateral acceleration).
+    over the period T). Understeer: ``tan(delta_k) - L r_k / v_k = K v_k r_k``
+    (:func:`understeer_excess` against lateral acceleration), the model
+    :func:`steady_state_steer` drives with.
     """
     obs, nxt, cmd = np.asarray(data.obs), np.asarray(data.next_obs), np.asarray(data.command)
     steer, steer_next = obs[:, _STEER], nxt[:, _STEER]
@@ -105,7 +116,7 @@ def identify(data: _Transitions, wheelbase: float, *, min_speed: float = 1.0) ->
     if ok_u.sum() < 20:
         raise ParameterError("identify: needs at least 20 transitions faster than min_speed with a yaw rate")
     v, r, d = speed[ok_u], yaw_rate[ok_u], steer[ok_u]
-    excess = d - np.arctan(wheelbase * r / v)
+    excess = understeer_excess(d, v, r, wheelbase)
     a_lat = v * r
     k = float(a_lat @ excess / max(a_lat @ a_lat, 1e-12))
     return IdentifiedModel(
@@ -115,6 +126,25 @@ def identify(data: _Transitions, wheelbase: float, *, min_speed: float = 1.0) ->
         understeer_fit_r2=_r2(excess, k * a_lat),
         n_samples=int(ok.sum()),
     )
+
+
+def effective_wheelbase(wheelbase: float, gradient: float, speed: np.ndarray) -> np.ndarray:
+    """``L + K v^2`` (m): the wheelbase with which a kinematic model corners like the car at ``v`` (m/s)."""
+    return wheelbase + gradient * speed * speed
+
+
+def steady_state_steer(
+    curvature: np.ndarray, speed: np.ndarray, wheelbase: float, gradient: float
+) -> np.ndarray:
+    """Wheel angle (rad) holding curvature ``kappa`` (1/m) at ``v`` (m/s): ``atan((L + K v^2) kappa)``."""
+    return np.arctan(effective_wheelbase(wheelbase, gradient, speed) * curvature)
+
+
+def understeer_excess(
+    steer: np.ndarray, speed: np.ndarray, yaw_rate: np.ndarray, wheelbase: float
+) -> np.ndarray:
+    """``tan(delta) - L r / v``: the tangent of the wheel angle beyond the kinematic one (``K v r``)."""
+    return np.tan(steer) - wheelbase * yaw_rate / speed
 
 
 def _r2(y: np.ndarray, fit: np.ndarray) -> float:

@@ -9,7 +9,8 @@ laps of data identify physically (see :mod:`rkmpc.learning.identification`):
   ``a = exp(-T / tau)``;
 * the understeer gradient ``K``: the path curvature the wheel angle produces is
   ``tan(delta_w) / (L + K v^2)``, so steady cornering needs the feed-forward
-  ``delta_r = atan((L + K v_r^2) kappa_r)``.
+  ``delta_r = atan((L + K v_r^2) kappa_r)``; both come from
+  :mod:`rkmpc.learning.identification`, the model the fit identifies ``K`` in.
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ from rkmpc.control.linear.lmpc import LinearMPC, LMPCConfig
 from rkmpc.control.linear.problem import condense
 from rkmpc.core.angles import wrap_scalar
 from rkmpc.core.observation import Observation
-from rkmpc.learning.identification import IdentifiedModel
+from rkmpc.learning.identification import IdentifiedModel, effective_wheelbase, steady_state_steer
 from rkmpc.vehicle.params import VehicleParams
 
 if TYPE_CHECKING:
@@ -69,7 +70,7 @@ class IdentifiedLMPC(LinearMPC):
         L, K = self.vehicle.wheelbase, self.model.understeer_gradient
         v = ref.v[:n]
         kappa = np.tan(ref.delta[:n]) / L
-        return np.column_stack([v, np.arctan((L + K * v * v) * kappa)])
+        return np.column_stack([v, steady_state_steer(kappa, v, L, K)])
 
     def _prediction(
         self, observation: Observation, ref: ReferenceHorizon, u_ref: np.ndarray
@@ -86,7 +87,7 @@ class IdentifiedLMPC(LinearMPC):
                 self._wheel(observation.steer_angle, self._guard.previous) - delta[0],
             ]
         )
-        l_eff = L + K * v * v
+        l_eff = effective_wheelbase(L, K, v)
         A = np.zeros((n, 4, 4))
         A[:, 0, 0] = A[:, 1, 1] = A[:, 2, 2] = 1.0
         A[:, 0, 2] = -v * np.sin(theta) * T
