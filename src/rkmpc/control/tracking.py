@@ -25,7 +25,6 @@ and hand the plan, or the fall-back when the solve failed, to the
 
 from __future__ import annotations
 
-import numbers
 from abc import abstractmethod
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
@@ -36,7 +35,7 @@ from rkmpc.control.base import Controller
 from rkmpc.control.guard import CommandGuard
 from rkmpc.core.errors import ParameterError
 from rkmpc.core.observation import Command, Observation
-from rkmpc.core.validation import require_nonnegative, require_positive
+from rkmpc.core.validation import is_integer, require_nonnegative, require_positive
 from rkmpc.vehicle.params import VehicleParams
 
 if TYPE_CHECKING:
@@ -98,11 +97,7 @@ class TrackingCost:
 
     def __post_init__(self) -> None:
         name = type(self).__name__
-        if (
-            isinstance(self.horizon, bool)
-            or not isinstance(self.horizon, numbers.Integral)
-            or self.horizon < 2
-        ):
+        if not is_integer(self.horizon, 2):
             raise ParameterError(f"{name}.horizon must be an integer >= 2, got {self.horizon!r}")
         require_positive(self, "dt")
         require_nonnegative(self, *MPC_WEIGHTS, "speed_margin")
@@ -112,7 +107,7 @@ class TrackingCost:
 
 def check_iterations(config: object, value: int) -> None:
     """Raise :class:`ParameterError` unless ``value`` (``max_iterations``) is an integer >= 1."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 1:
+    if not is_integer(value, 1):
         raise ParameterError(f"{type(config).__name__}.max_iterations must be an integer >= 1, got {value!r}")
 
 

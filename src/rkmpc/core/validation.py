@@ -1,10 +1,40 @@
-"""Checks shared by the validated parameter dataclasses."""
+"""Checks shared by the validated settings (frozen dataclasses) of the whole package.
+
+The predicates (:func:`is_integer`, :func:`is_positive_number`) say whether a
+value passes; the ``require_*`` functions raise :class:`ParameterError` naming
+the class and the attribute that failed.
+"""
 
 from __future__ import annotations
 
 import math
+import numbers
+from typing import Any
 
 from rkmpc.core.errors import ParameterError
+
+__all__ = [
+    "is_integer",
+    "is_positive_number",
+    "require_nonnegative",
+    "require_positive",
+    "require_positive_value",
+]
+
+
+def is_integer(value: Any, minimum: int | None = None) -> bool:
+    """An integer (Python or numpy, not a bool), at least ``minimum`` when given."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+        return False
+    return minimum is None or int(value) >= minimum
+
+
+def is_positive_number(value: Any, upper: float = math.inf) -> bool:
+    """A finite real number (not a bool) in ``(0, upper]``."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        return False
+    f = float(value)
+    return math.isfinite(f) and 0.0 < f <= upper
 
 
 def require_nonnegative(obj: object, *names: str) -> None:
@@ -20,4 +50,14 @@ def require_positive(obj: object, *names: str) -> None:
     for name in names:
         value = getattr(obj, name)
         if not (math.isfinite(value) and value > 0):
-            raise ParameterError(f"{type(obj).__name__}.{name} must be finite and > 0, got {value}")
+            raise ParameterError(f"{type(obj).__name__}.{name} must be finite and > 0, got {value!r}")
+
+
+def require_positive_value(value: Any, name: str) -> float:
+    """``value`` as a float when it is a finite number > 0; else :class:`ParameterError` naming ``name``."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise ParameterError(f"{name} must be a number, got {value!r}")
+    out = float(value)
+    if not (math.isfinite(out) and out > 0.0):
+        raise ParameterError(f"{name} must be finite and > 0, got {value!r}")
+    return out

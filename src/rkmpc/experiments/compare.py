@@ -10,7 +10,6 @@ lap with the fault and the effect is classified (:func:`fault_effect`).
 
 from __future__ import annotations
 
-import numbers
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from typing import Any
@@ -18,6 +17,7 @@ from typing import Any
 from rkmpc.analysis.metrics import LapMetrics
 from rkmpc.control.learned.rkmpc import PaperResidualKoopmanMPC, ResidualKoopmanMPC, ResidualMPCConfig
 from rkmpc.core.errors import ParameterError
+from rkmpc.core.validation import is_integer
 from rkmpc.core.versions import versions
 from rkmpc.experiments.models import ModelPlan, learn_models
 from rkmpc.experiments.results import ControllerRun, FaultOutcome, TrackResult
@@ -49,10 +49,6 @@ RKMPC_PAPER_CONFIG = PaperResidualKoopmanMPC.default_config
 
 #: Relative growth of the mean lateral error above which a fault counts as degrading a controller.
 DEGRADE_THRESHOLD = 0.25
-
-
-def _is_int(value: Any, minimum: int) -> bool:
-    return isinstance(value, numbers.Integral) and not isinstance(value, bool) and int(value) >= minimum
 
 
 @dataclass(frozen=True)
@@ -124,9 +120,9 @@ class CompareConfig:
     def __post_init__(self) -> None:
         for name, minimum in (("laps", 1), ("seed", 0), ("run_laps", 1), ("kmpc_samples", 1000)):
             value = getattr(self, name)
-            if not _is_int(value, minimum):
+            if not is_integer(value, minimum):
                 raise ParameterError(f"CompareConfig.{name} must be an integer >= {minimum}, got {value!r}")
-        if self.epochs is not None and not _is_int(self.epochs, 1):
+        if self.epochs is not None and not is_integer(self.epochs, 1):
             raise ParameterError(f"CompareConfig.epochs must be None or an integer >= 1, got {self.epochs!r}")
         if not self.controllers:
             raise ParameterError("CompareConfig.controllers is empty")

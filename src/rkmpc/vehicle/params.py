@@ -6,13 +6,7 @@ import math
 from dataclasses import dataclass, field, fields, replace
 
 from rkmpc.core.errors import ParameterError
-
-
-def _check_positive(obj: object, *names: str) -> None:
-    for name in names:
-        value = getattr(obj, name)
-        if not (math.isfinite(value) and value > 0.0):
-            raise ParameterError(f"{type(obj).__name__}.{name} must be finite and > 0, got {value!r}")
+from rkmpc.core.validation import require_positive
 
 
 def _check_finite(obj: object) -> None:
@@ -48,7 +42,7 @@ class PacejkaParams:
 
     def __post_init__(self) -> None:
         _check_finite(self)
-        _check_positive(self, "B", "C", "D")
+        require_positive(self, "B", "C", "D")
 
     @property
     def cornering_stiffness_per_load(self) -> float:
@@ -76,7 +70,7 @@ class SteeringParams:
 
     def __post_init__(self) -> None:
         _check_finite(self)
-        _check_positive(self, "time_constant", "max_angle", "max_rate")
+        require_positive(self, "time_constant", "max_angle", "max_rate")
 
 
 @dataclass(frozen=True)
@@ -105,7 +99,7 @@ class DriveParams:
 
     def __post_init__(self) -> None:
         _check_finite(self)
-        _check_positive(self, "time_constant", "max_accel", "max_brake", "max_speed")
+        require_positive(self, "time_constant", "max_accel", "max_brake", "max_speed")
         if not 0.0 <= self.min_speed < self.max_speed:
             raise ParameterError(
                 f"DriveParams.min_speed must satisfy 0 <= min_speed < max_speed, got {self.min_speed!r}"
@@ -158,7 +152,7 @@ class VehicleParams:
 
     def __post_init__(self) -> None:
         _check_finite(self)
-        _check_positive(self, "mass", "yaw_inertia", "lf", "lr", "mu", "gravity")
+        require_positive(self, "mass", "yaw_inertia", "lf", "lr", "mu", "gravity")
         if self.h_cg < 0.0:
             raise ParameterError(f"VehicleParams.h_cg must be >= 0, got {self.h_cg!r}")
         if not 0.0 <= self.blend_speed_low < self.blend_speed_high:

@@ -15,6 +15,7 @@ import numpy as np
 
 from rkmpc.core.errors import ParameterError
 from rkmpc.core.observation import Command, Observation
+from rkmpc.core.validation import is_integer
 from rkmpc.vehicle.plants.base import Plant, check_command
 
 
@@ -153,7 +154,7 @@ class CommandDelay(PlantWrapper):
     """
 
     def __init__(self, plant: Plant, steps: int) -> None:
-        if isinstance(steps, bool) or not isinstance(steps, int | np.integer) or steps < 0:
+        if not is_integer(steps, 0):
             raise ParameterError(f"CommandDelay.steps must be an integer >= 0, got {steps!r}")
         super().__init__(plant)
         self.steps = int(steps)

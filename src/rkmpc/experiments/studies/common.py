@@ -2,13 +2,12 @@
 
 from __future__ import annotations
 
-import math
-import numbers
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
 from rkmpc.core.errors import ParameterError
+from rkmpc.core.validation import is_integer, is_positive_number
 from rkmpc.core.versions import versions
 from rkmpc.experiments.parallel import BACKENDS
 from rkmpc.sim.scenario import VEHICLES
@@ -20,25 +19,10 @@ __all__ = [
     "check_track",
     "expand_tracks",
     "int_tuple",
-    "is_int",
-    "positive_real",
     "str_tuple",
     "study_versions",
     "track_label",
 ]
-
-
-def is_int(value: Any) -> bool:
-    """An integer that is not a bool."""
-    return isinstance(value, numbers.Integral) and not isinstance(value, bool)
-
-
-def positive_real(value: Any, upper: float = math.inf) -> bool:
-    """True for a finite number in ``(0, upper]`` (not a bool)."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        return False
-    f = float(value)
-    return math.isfinite(f) and 0.0 < f <= upper
 
 
 def int_tuple(name: str, values: Any, *, minimum: int) -> tuple[int, ...]:
@@ -49,7 +33,7 @@ def int_tuple(name: str, values: Any, *, minimum: int) -> tuple[int, ...]:
     if not out:
         raise ParameterError(f"{name} must not be empty")
     for v in out:
-        if not is_int(v) or v < minimum:
+        if not is_integer(v) or v < minimum:
             raise ParameterError(f"{name} must hold integers >= {minimum}, got {v!r}")
     if len(set(out)) != len(out):
         raise ParameterError(f"{name} must not repeat values, got {list(out)}")
@@ -83,7 +67,7 @@ def check_track(spec: str) -> None:
 
 def check_scale_vehicle(scale: Any, vehicle: Any) -> None:
     """ParameterError for a scale that is not a positive number (or None) or an unknown vehicle."""
-    if scale is not None and not positive_real(scale):
+    if scale is not None and not is_positive_number(scale):
         raise ParameterError(f"scale must be a positive number or None, got {scale!r}")
     if vehicle not in VEHICLES:
         raise ParameterError(f"vehicle must be one of {sorted(VEHICLES)}, got {vehicle!r}")
@@ -93,7 +77,7 @@ def check_parallel(n_jobs: int, backend: str) -> None:
     """ParameterError for an unknown backend or a job count that is neither positive nor -1."""
     if backend not in BACKENDS:
         raise ParameterError(f"backend must be one of {list(BACKENDS)}, got {backend!r}")
-    if not is_int(n_jobs) or n_jobs == 0 or n_jobs < -1:
+    if not is_integer(n_jobs) or n_jobs == 0 or n_jobs < -1:
         raise ParameterError(f"n_jobs must be a positive integer or -1, got {n_jobs!r}")
 
 

@@ -9,13 +9,12 @@ from dataclasses import asdict, dataclass
 from typing import Any
 
 from rkmpc.core.errors import ParameterError
+from rkmpc.core.validation import is_integer, is_positive_number
 from rkmpc.experiments.runs import run_controller
 from rkmpc.experiments.studies.common import (
     check_scale_vehicle,
     check_track,
     int_tuple,
-    is_int,
-    positive_real,
     str_tuple,
 )
 from rkmpc.learning.data.augmentation import AugmentConfig, valid_origins
@@ -93,17 +92,19 @@ class DataStudyConfig:
         if bad:
             raise ParameterError(f"DataStudyConfig.controllers: {bad}; allowed: {sorted(DATA_CONTROLLERS)}")
         object.__setattr__(self, "controllers", controllers)
-        if not is_int(self.n_points) or self.n_points < 1:
+        if not is_integer(self.n_points) or self.n_points < 1:
             raise ParameterError(f"DataStudyConfig.n_points must be an integer >= 1, got {self.n_points!r}")
         for name in ("rkmpc_max_ratio", "kmpc_max_ratio"):
-            if not positive_real(getattr(self, name), 1.0):
+            if not is_positive_number(getattr(self, name), 1.0):
                 raise ParameterError(f"DataStudyConfig.{name} must be in (0, 1], got {getattr(self, name)!r}")
-        if not (is_int(self.min_laps) and is_int(self.max_laps) and 1 <= self.min_laps <= self.max_laps):
+        if not (
+            is_integer(self.min_laps) and is_integer(self.max_laps) and 1 <= self.min_laps <= self.max_laps
+        ):
             raise ParameterError(
                 "DataStudyConfig: need integers 1 <= min_laps <= max_laps, "
                 f"got {self.min_laps!r}, {self.max_laps!r}"
             )
-        if self.epochs is not None and not (is_int(self.epochs) and self.epochs >= 1):
+        if self.epochs is not None and not (is_integer(self.epochs) and self.epochs >= 1):
             raise ParameterError(
                 f"DataStudyConfig.epochs must be None or an integer >= 1, got {self.epochs!r}"
             )

@@ -26,6 +26,7 @@ import numpy as np
 
 from rkmpc.core.angles import wrap_angle
 from rkmpc.core.errors import ParameterError
+from rkmpc.core.validation import is_integer
 from rkmpc.learning.data.dataset import TransitionDataset
 
 
@@ -52,11 +53,11 @@ class AugmentConfig:
     def __post_init__(self) -> None:
         if not (isinstance(self.ratio, numbers.Real) and math.isfinite(self.ratio) and 0 < self.ratio <= 1):
             raise ParameterError(f"AugmentConfig.ratio must be in (0, 1], got {self.ratio!r}")
-        if not isinstance(self.n_points, numbers.Integral) or isinstance(self.n_points, bool):
+        if not is_integer(self.n_points):
             raise ParameterError(f"AugmentConfig.n_points must be an integer, got {self.n_points!r}")
         if self.n_points < 1:
             raise ParameterError(f"AugmentConfig.n_points must be >= 1, got {self.n_points!r}")
-        if not isinstance(self.seed, numbers.Integral) or isinstance(self.seed, bool) or self.seed < 0:
+        if not is_integer(self.seed, 0):
             raise ParameterError(f"AugmentConfig.seed must be an integer >= 0, got {self.seed!r}")
 
 

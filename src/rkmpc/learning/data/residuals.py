@@ -22,20 +22,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from rkmpc.core.angles import wrap_angle
-from rkmpc.core.errors import ParameterError
+from rkmpc.core.validation import require_positive_value
 from rkmpc.learning.data.dataset import TransitionDataset
 
 #: Below this travelled distance (m) the wheel angle of a step is undefined and set to 0.
 MIN_DISTANCE = 1e-9
 #: Below this half heading change (rad) the chord factor uses its series.
 _SERIES_LIMIT = 1e-4
-
-
-def _check_positive(value: float, name: str) -> float:
-    out = float(value)
-    if not (math.isfinite(out) and out > 0.0):
-        raise ParameterError(f"{name} must be finite and > 0, got {value!r}")
-    return out
 
 
 def _arc_geometry(pose: np.ndarray, next_pose: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -104,8 +97,8 @@ def kinematic_inverse(pose: np.ndarray, next_pose: np.ndarray, wheelbase: float,
     numpy.ndarray, shape (N, 2)
         ``U_p = [v_p (m/s), delta_p (rad)]``.
     """
-    length_wb = _check_positive(wheelbase, "wheelbase")
-    step = _check_positive(dt, "dt")
+    length_wb = require_positive_value(wheelbase, "wheelbase")
+    step = require_positive_value(dt, "dt")
     length, dpsi, _ = _arc_geometry(pose, next_pose)
     moving = np.abs(length) >= MIN_DISTANCE
     safe = np.where(moving, length, 1.0)
@@ -153,7 +146,7 @@ def control_residuals(data: TransitionDataset, wheelbase: float) -> ResidualLabe
     -------
     ResidualLabels
     """
-    length_wb = _check_positive(wheelbase, "wheelbase")
+    length_wb = require_positive_value(wheelbase, "wheelbase")
     poses = data.poses()
     next_poses = data.next_poses()
     nominal = kinematic_inverse(poses, next_poses, length_wb, data.dt)

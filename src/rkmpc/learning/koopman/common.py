@@ -6,13 +6,12 @@ Used by :mod:`rkmpc.learning.koopman.mlp` and :mod:`rkmpc.learning.koopman.rbf`;
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
 
 import numpy as np
 
 from rkmpc.core.errors import ParameterError
 
-__all__ = ["as_vector", "check_input", "is_int", "standardisation"]
+__all__ = ["as_vector", "check_input", "standardisation"]
 
 
 def standardisation(X: np.ndarray, min_std: float = 1e-8) -> tuple[np.ndarray, np.ndarray]:
@@ -61,8 +60,3 @@ def check_input(X: np.ndarray, nx: int, who: str) -> np.ndarray:
     if X.ndim not in (1, 2) or X.shape[-1] != nx:
         raise ParameterError(f"{who}: expected states of shape (n_samples, {nx}) or ({nx},), got {X.shape}")
     return X
-
-
-def is_int(value: Any, minimum: int) -> bool:
-    """Whether ``value`` is an integer (not a bool) of at least ``minimum``."""
-    return bool(isinstance(value, (int, np.integer)) and not isinstance(value, bool) and value >= minimum)

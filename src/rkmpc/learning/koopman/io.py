@@ -25,7 +25,7 @@ import numpy as np
 from rkmpc.core.errors import InputFileError, ParameterError
 from rkmpc.core.io import atomic_write, read_npz
 from rkmpc.core.jsonutil import json_default
-from rkmpc.learning.koopman.lifting import Lifting, MLPLifting, MLPTraining, RBFLifting, lifting_from_params
+from rkmpc.learning.koopman.lifting import Lifting, MLPLifting, RBFLifting, lifting_from_params
 
 __all__ = ["FORMAT_NAME", "FORMAT_VERSION", "READABLE_VERSIONS", "StoredModel", "read_model", "write_model"]
 
@@ -120,32 +120,41 @@ def model_from_params(cls: Callable[..., M], params: Mapping[str, Any]) -> M:
 
 
 def _model_from_flat(cls: Callable[..., M], flat: Mapping[str, Any]) -> M:
-    """An unfitted ``cls`` from the flat settings of format versions 1 and 2."""
+    """An unfitted ``cls`` from the flat settings of format versions 1 and 2 (turned into today's)."""
     unknown = sorted(set(flat) - set(_FLAT_DEFAULTS))
     if unknown:
         raise ParameterError(f"unknown settings {unknown}")
     p = {**_FLAT_DEFAULTS, **flat}
-    lifting: Lifting | None
-    if p["lifting"] == "mlp":
-        training = MLPTraining(
-            epochs=p["epochs"],
-            learning_rate=p["learning_rate"],
-            batch_size=p["batch_size"],
-            huber_delta=p["huber_delta"],
-            rollout_steps=p["rollout_steps"],
-            rollout_weight=p["rollout_weight"],
-            seed=p["seed"],
-        )
-        lifting = MLPLifting(p["n_lift"], tuple(p["hidden"]), training)
-    elif p["lifting"] == "rbf":
-        lifting = RBFLifting(n_centers=p["n_centers"], kind=p["rbf_kind"], seed=p["seed"])
-    elif p["lifting"] == "none":
-        lifting = None
-    else:
+    training = (
+        "epochs",
+        "learning_rate",
+        "batch_size",
+        "huber_delta",
+        "rollout_steps",
+        "rollout_weight",
+        "seed",
+    )
+    liftings: dict[str, dict[str, Any] | None] = {
+        "mlp": {
+            "kind": "mlp",
+            "n_lift": p["n_lift"],
+            "hidden": p["hidden"],
+            "training": {name: p[name] for name in training},
+        },
+        "rbf": {
+            "kind": "rbf",
+            "n_centers": p["n_centers"],
+            "rbf_kind": p["rbf_kind"],
+            "seed": p["seed"],
+            "method": "kmeans++",
+            "width": None,
+        },
+        "none": None,
+    }
+    if p["lifting"] not in liftings:
         raise ParameterError(f"lifting must be one of {LIFTING_KINDS}, got {p['lifting']!r}")
-    model = cls(lifting, include_state=p["include_state"], ridge=p["ridge"], clip_inputs=p["clip_inputs"])
-    model.validate()
-    return model
+    settings = {name: p[name] for name in ("include_state", "ridge", "clip_inputs")}
+    return model_from_params(cls, {"lifting": liftings[p["lifting"]], **settings})
 
 
 def write_model(path: str | Path, model: _Fitted, metadata: Mapping[str, Any] | None) -> None:

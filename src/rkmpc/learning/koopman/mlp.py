@@ -13,7 +13,8 @@ from typing import Any, ClassVar
 import numpy as np
 
 from rkmpc.core.errors import ParameterError
-from rkmpc.learning.koopman.common import as_vector, check_input, is_int, standardisation
+from rkmpc.core.validation import is_integer
+from rkmpc.learning.koopman.common import as_vector, check_input, standardisation
 from rkmpc.learning.koopman.settings import MLPTraining
 from rkmpc.learning.koopman.windows import consecutive_windows
 
@@ -83,9 +84,13 @@ class MLPLifting:
     def validate(self) -> None:
         """Raise :class:`ParameterError` for bad settings."""
         hidden = self.hidden
-        if not isinstance(hidden, (tuple, list)) or len(hidden) != 2 or not all(is_int(h, 1) for h in hidden):
+        if (
+            not isinstance(hidden, (tuple, list))
+            or len(hidden) != 2
+            or not all(is_integer(h, 1) for h in hidden)
+        ):
             raise ParameterError(f"MLPLifting.hidden must be two positive integers, got {hidden!r}")
-        if not is_int(self.n_lift, 1):
+        if not is_integer(self.n_lift, 1):
             raise ParameterError(f"MLPLifting.n_lift must be an integer >= 1, got {self.n_lift!r}")
         if self.training is not None and not isinstance(self.training, MLPTraining):
             raise ParameterError(f"MLPLifting.training must be an MLPTraining, got {self.training!r}")

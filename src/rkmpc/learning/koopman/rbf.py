@@ -11,7 +11,8 @@ from typing import Any, ClassVar
 import numpy as np
 
 from rkmpc.core.errors import ParameterError
-from rkmpc.learning.koopman.common import as_vector, check_input, is_int, standardisation
+from rkmpc.core.validation import is_integer
+from rkmpc.learning.koopman.common import as_vector, check_input, standardisation
 
 __all__ = ["RBF_KINDS", "RBF_METHODS", "RBFLifting"]
 
@@ -86,11 +87,11 @@ class RBFLifting:
 
     def validate(self) -> None:
         """Raise :class:`ParameterError` for bad settings."""
-        if not is_int(self.n_centers, 1):
+        if not is_integer(self.n_centers, 1):
             raise ParameterError(f"RBFLifting.n_centers must be an integer >= 1, got {self.n_centers!r}")
         if self.kind not in RBF_KINDS:
             raise ParameterError(f"RBFLifting.kind must be one of {RBF_KINDS}, got {self.kind!r}")
-        if not is_int(self.seed, 0):
+        if not is_integer(self.seed, 0):
             raise ParameterError(f"RBFLifting.seed must be an integer >= 0, got {self.seed!r}")
         if self.method not in RBF_METHODS:
             raise ParameterError(f"RBFLifting.method must be one of {RBF_METHODS}, got {self.method!r}")

@@ -8,6 +8,7 @@ from dataclasses import dataclass, fields
 from typing import ClassVar
 
 from rkmpc.core.errors import ParameterError
+from rkmpc.core.validation import is_integer
 
 __all__ = ["MLPTraining"]
 
@@ -53,7 +54,7 @@ class MLPTraining:
             value = getattr(self, f.name)
             if f.name in self._INTS:
                 low = self._INTS[f.name]
-                if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < low:
+                if not is_integer(value, low):
                     raise ParameterError(f"MLPTraining.{f.name} must be an integer >= {low}, got {value!r}")
                 continue
             ok = isinstance(value, numbers.Real) and not isinstance(value, bool) and math.isfinite(value)

@@ -2,21 +2,17 @@
 
 from __future__ import annotations
 
-import math
 from abc import ABC, abstractmethod
 from dataclasses import asdict
 from typing import Any, ClassVar
 
-from rkmpc.core.errors import ParameterError
+from rkmpc.core.validation import require_positive_value
 from rkmpc.sim.scenario import Scenario
 from rkmpc.vehicle.plants.base import Plant
 
 
 def _finite_positive(owner: str, name: str, value: float) -> None:
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        raise ParameterError(f"{owner}.{name} must be a number, got {value!r}")
-    if not (math.isfinite(value) and value > 0.0):
-        raise ParameterError(f"{owner}.{name} must be finite and > 0, got {value!r}")
+    require_positive_value(value, f"{owner}.{name}")
 
 
 class Fault(ABC):
