@@ -210,3 +210,37 @@ class ActuatedPlant(Plant):
     @abstractmethod
     def _advance(self, duration: float, setpoint: tuple[float, float]) -> None:
         """Integrate ``duration`` seconds from :attr:`time` holding ``setpoint = (speed, steer)``."""
+
+
+def single_track_observation(
+    x: float, y: float, yaw: float, v: float, beta: float, yaw_rate: float, delta: float, time: float
+) -> Observation:
+    """The true observation of a single-track state; ``speed`` is ``v cos(beta)``, along the heading.
+
+    Parameters
+    ----------
+    x, y : float
+        Position of the centre of gravity (m).
+    yaw : float
+        Heading (rad).
+    v : float
+        Speed magnitude at the centre of gravity (m/s).
+    beta : float
+        Side-slip angle (rad).
+    yaw_rate : float
+        Yaw rate (rad/s).
+    delta : float
+        Front wheel angle (rad).
+    time : float
+        Simulation time (s).
+    """
+    return Observation(
+        x=x,
+        y=y,
+        yaw=yaw,
+        speed=v * math.cos(beta),
+        yaw_rate=yaw_rate,
+        slip_angle=beta,
+        steer_angle=delta,
+        time=time,
+    )

@@ -42,7 +42,7 @@ import numpy as np
 from rkmpc.core.observation import Observation
 from rkmpc.vehicle.friction import FrictionSchedule
 from rkmpc.vehicle.params import VehicleParams, f1tenth
-from rkmpc.vehicle.plants.base import ActuatedPlant
+from rkmpc.vehicle.plants.base import ActuatedPlant, single_track_observation
 
 __all__ = ["DynamicPlant"]
 
@@ -255,16 +255,7 @@ class DynamicPlant(ActuatedPlant):
     def observe(self) -> Observation:
         """True observation; ``speed`` is the velocity along the heading, ``v cos(beta)``."""
         x, y, yaw, v, beta, r, delta = self._s
-        return Observation(
-            x=x,
-            y=y,
-            yaw=yaw,
-            speed=v * math.cos(beta),
-            yaw_rate=r,
-            slip_angle=beta,
-            steer_angle=delta,
-            time=self._time,
-        )
+        return single_track_observation(x, y, yaw, v, beta, r, delta, self._time)
 
     @property
     def state(self) -> np.ndarray:

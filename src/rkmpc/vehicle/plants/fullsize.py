@@ -39,7 +39,7 @@ from rkmpc.core.errors import ParameterError
 from rkmpc.core.observation import Observation
 from rkmpc.vehicle.friction import FrictionSchedule
 from rkmpc.vehicle.params import VehicleParams, fullsize
-from rkmpc.vehicle.plants.base import ActuatedPlant
+from rkmpc.vehicle.plants.base import ActuatedPlant, single_track_observation
 
 __all__ = ["FullSizePlant", "fullsize"]
 
@@ -174,16 +174,7 @@ class FullSizePlant(ActuatedPlant):
     def observe(self) -> Observation:
         """True observation; ``speed`` is the velocity along the heading, ``v cos(beta)``."""
         x, y, delta, v, yaw, yaw_rate, beta = (float(value) for value in self._s[:7])
-        return Observation(
-            x=x,
-            y=y,
-            yaw=yaw,
-            speed=v * math.cos(beta),
-            yaw_rate=yaw_rate,
-            slip_angle=beta,
-            steer_angle=delta,
-            time=self._time,
-        )
+        return single_track_observation(x, y, yaw, v, beta, yaw_rate, delta, self._time)
 
     @property
     def state(self) -> np.ndarray:
