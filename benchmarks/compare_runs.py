@@ -16,19 +16,10 @@ import math
 from pathlib import Path
 from typing import Any
 
-#: Lap figures compared (not the step times).
-KEYS = (
-    "completed",
-    "progress",
-    "lap_time_s",
-    "lateral_error_mean_m",
-    "lateral_error_max_m",
-    "heading_error_mean_rad",
-    "steer_rate_mean_rad_s",
-    "fallback_count",
-    "steps",
-    "lateral_accel_max_m_s2",
-)
+from rkmpc.analysis.metrics import METRIC_KEYS
+
+#: Lap figures compared: every metric but the step times (wall-clock).
+KEYS = tuple(key for key in METRIC_KEYS if not key.startswith("solve_ms"))
 
 
 def relative(a: Any, b: Any) -> float:

@@ -9,10 +9,11 @@ are cached by content hash (:mod:`rkmpc.experiments.cache`).
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import time
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -33,6 +34,7 @@ from rkmpc.sim.scenario import Scenario, vehicle_preset
 __all__ = ["ModelPlan", "learn_models", "train_excitation_model", "train_track_model"]
 
 
+@functools.cache
 def _code_hash() -> str:
     """Hash of the sources that shape training data and models (vehicle and learning packages)."""
     root = Path(rkmpc.core.__file__).parent.parent
@@ -68,15 +70,14 @@ def _through_cache(
     """``build()``, or the cached model of ``spec``; the record says which."""
     if cache is None:
         model, record = build()
-        return model, ModelRecord(**{**asdict(record), "cached": False, "cache_key": None})
+        return model, replace(record, cached=False, cache_key=None)
 
     def build_json() -> tuple[KoopmanModel, dict[str, Any]]:
         model, record = build()
         return model, record.to_json()
 
     model, hit = cache.get_or_build(spec, build_json)
-    record = ModelRecord.from_json(hit.info)
-    return model, ModelRecord(**{**asdict(record), "cached": hit.hit, "cache_key": hit.key})
+    return model, replace(ModelRecord.from_json(hit.info), cached=hit.hit, cache_key=hit.key)
 
 
 def train_excitation_model(

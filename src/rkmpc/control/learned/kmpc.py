@@ -16,13 +16,17 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from rkmpc.control.learned.lifted import LiftedModel, lifted_prediction, reference_in_local_frame
+from rkmpc.control.learned.lifted import (
+    LiftedModel,
+    lifted_prediction,
+    recipe_state,
+    reference_in_local_frame,
+)
 from rkmpc.control.linear.lmpc import LMPCConfig
 from rkmpc.control.linear.problem import KinematicMPCProblem
 from rkmpc.control.qp import make_qp
 from rkmpc.control.tracking import Solution, TrackingController
 from rkmpc.core.observation import Observation
-from rkmpc.learning.features import KMPC_STATE
 from rkmpc.vehicle.params import VehicleParams
 
 if TYPE_CHECKING:
@@ -48,8 +52,8 @@ class KoopmanMPC(TrackingController):
     """
 
     name = "kmpc"
-    #: The features the model was trained on, read from the live observation the same way.
-    state = KMPC_STATE
+    #: The features the model was trained on (its recipe's), read from the live observation the same way.
+    state = recipe_state("kmpc")
     config: LMPCConfig
 
     def __init__(

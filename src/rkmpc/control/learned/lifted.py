@@ -15,12 +15,15 @@ from typing import TYPE_CHECKING, Protocol
 import numpy as np
 
 from rkmpc.core.angles import branch_shift
+from rkmpc.core.errors import ParameterError
 from rkmpc.core.observation import Observation
+from rkmpc.learning.features import FeatureMap
+from rkmpc.learning.recipes import recipe_for
 
 if TYPE_CHECKING:
     from rkmpc.track.reference import ReferenceHorizon
 
-__all__ = ["LiftedModel", "lifted_prediction", "reference_in_local_frame"]
+__all__ = ["LiftedModel", "lifted_prediction", "recipe_state", "reference_in_local_frame"]
 
 
 class LiftedModel(Protocol):
@@ -32,6 +35,14 @@ class LiftedModel(Protocol):
     D_: np.ndarray
 
     def lift(self, X: np.ndarray) -> np.ndarray: ...
+
+
+def recipe_state(controller: str) -> FeatureMap:
+    """The state features of a learned controller's recipe: the map its model was trained on."""
+    recipe = recipe_for(controller)
+    if recipe is None or recipe.state is None:
+        raise ParameterError(f"no Koopman recipe for the controller {controller!r}")
+    return recipe.state
 
 
 def reference_in_local_frame(ref: ReferenceHorizon, observation: Observation) -> np.ndarray:

@@ -34,26 +34,22 @@ import numpy as np
 
 from rkmpc.control.base import Controller
 from rkmpc.control.guard import CommandGuard
-from rkmpc.control.learned.lifted import LiftedModel, lifted_prediction, reference_in_local_frame
+from rkmpc.control.learned.lifted import (
+    LiftedModel,
+    lifted_prediction,
+    recipe_state,
+    reference_in_local_frame,
+)
 from rkmpc.control.linear.lmpc import LinearMPC, LMPCConfig, Prediction
 from rkmpc.control.qp import make_qp
 from rkmpc.core.errors import ParameterError
 from rkmpc.core.observation import Command, Observation
 from rkmpc.core.validation import require_nonnegative
 from rkmpc.learning.features import FeatureMap
-from rkmpc.learning.recipes import recipe_for
 from rkmpc.vehicle.params import VehicleParams
 
 if TYPE_CHECKING:
     from rkmpc.track.reference import Reference
-
-
-def _state_features(controller: str) -> FeatureMap:
-    """The state features of a learned controller's recipe (the map its model was trained on)."""
-    recipe = recipe_for(controller)
-    if recipe is None or recipe.state is None:
-        raise ParameterError(f"no Koopman recipe for the controller {controller!r}")
-    return recipe.state
 
 
 def _all_finite(values: np.ndarray) -> bool:
@@ -121,7 +117,7 @@ class _ResidualBase(Controller):
         self.vehicle = vehicle
         self.model = model
         self.config = config if config is not None else self.default_config
-        self.state: FeatureMap = _state_features(self.name)
+        self.state: FeatureMap = recipe_state(self.name)
         self.lmpc = LinearMPC(reference, vehicle, lmpc_config)
         n = self.lmpc.config.horizon
         self.horizon = n
