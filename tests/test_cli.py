@@ -162,6 +162,7 @@ RESULT_KEYS = {
     "lateral_error_max_m": float,
     "heading_error_mean_rad": float,
     "steer_rate_mean_rad_s": float,
+    "command_rate_mean_rad_s": float,
     "solve_ms_mean": float,
     "solve_ms_p99": float,
     "solve_ms_max": float,

@@ -29,6 +29,9 @@ def _add_scenario_args(parser: argparse.ArgumentParser) -> None:
         "--scale", type=float, default=None, help="scale of track files (default: 0.1 for f1tenth)"
     )
     parser.add_argument("--vehicle", default="f1tenth", choices=_VEHICLES)
+    parser.add_argument(
+        "--car", default=None, help="drive a car of the zoo (gym, overshoot, ..., random-<seed>) instead"
+    )
     parser.add_argument("--laps", type=int, default=1)
     parser.add_argument("--seed", type=int, default=0, help="seed of every random choice (noise)")
     parser.add_argument("--noise", action="store_true", help="add measurement noise to the observations")
@@ -70,9 +73,10 @@ def _add_parallel_args(parser: argparse.ArgumentParser) -> None:
 
 def _add_study_parser(sub: Any) -> None:
     from rkmpc.experiments.compare import ALL_CONTROLLERS
+    from rkmpc.experiments.studies.cars import CARS_CONTROLLERS, DEFAULT_CARS
     from rkmpc.experiments.studies.data import DEFAULT_SIZES
 
-    study = sub.add_parser("study", help="multi-run studies: over tracks, or over training-data volume")
+    study = sub.add_parser("study", help="multi-run studies: over tracks, cars, or training-data volume")
     kinds = study.add_subparsers(dest="study", required=True)
     tracks = kinds.add_parser(
         "tracks", help="every controller on many tracks; mean and spread per controller"
@@ -91,6 +95,15 @@ def _add_study_parser(sub: Any) -> None:
     tracks.add_argument("--epochs", type=int, default=None, help="training epochs of the learned models")
     tracks.add_argument("--cache-dir", type=Path, default=None, help=_CACHE_HELP)
     _add_parallel_args(tracks)
+    cars = kinds.add_parser("cars", help="every controller on cars of the zoo it was not built for")
+    cars.add_argument("--cars", default=",".join(DEFAULT_CARS), help="zoo variants (or random-<seed>)")
+    cars.add_argument("--tracks", default="builtin", help="as for `study tracks`")
+    cars.add_argument("--controllers", default=",".join(CARS_CONTROLLERS))
+    cars.add_argument("--seeds", default="0")
+    cars.add_argument("--kmpc-samples", type=int, default=50_000)
+    cars.add_argument("--epochs", type=int, default=None, help="training epochs of the learned models")
+    cars.add_argument("--cache-dir", type=Path, default=None, help=_CACHE_HELP)
+    _add_parallel_args(cars)
     data = kinds.add_parser("data", help="RKMPC against KMPC as the number of training samples grows")
     data.add_argument("--track", default="builtin")
     data.add_argument("--scale", type=float, default=None)
@@ -228,7 +241,9 @@ def _cmd_collect(args: argparse.Namespace) -> int:
         log = StepLog.from_csv(args.from_log)
         data = TransitionDataset.from_log(log, metadata={**log.metadata, "source": str(args.from_log)})
     else:
-        scenario = load_scenario(args.track, raceline=args.raceline, scale=args.scale, vehicle=args.vehicle)
+        scenario = load_scenario(
+            args.track, raceline=args.raceline, scale=args.scale, vehicle=args.vehicle, car=args.car
+        )
         if args.excitation:
             data = collect_excitation(scenario, n_samples=args.excitation, seed=args.seed)
         else:
@@ -288,6 +303,7 @@ def _cmd_compare(args: argparse.Namespace) -> int:
         use_cache=not args.no_cache,
         model_files=tuple(_model_files(names, args.model).items()),
         epochs=args.epochs,
+        car=args.car,
     )
     out: Path = args.out
     out.mkdir(parents=True, exist_ok=True)
@@ -327,9 +343,10 @@ def _cmd_study(args: argparse.Namespace) -> int:
     from rich.console import Console
 
     from rkmpc.analysis.plots import save_figure
-    from rkmpc.analysis.study_plots import plot_data_study
+    from rkmpc.analysis.study_plots import plot_cars_study, plot_data_study
     from rkmpc.core.io import write_json_atomic, write_text_atomic
     from rkmpc.experiments.parallel import limit_threads
+    from rkmpc.experiments.studies.cars import CarsStudyConfig, study_cars
     from rkmpc.experiments.studies.common import expand_tracks
     from rkmpc.experiments.studies.data import DataStudyConfig, study_data
     from rkmpc.experiments.studies.tracks import TracksStudyConfig, study_tracks
@@ -338,25 +355,28 @@ def _cmd_study(args: argparse.Namespace) -> int:
     console = Console(stderr=True)
     where = {"n_jobs": args.jobs, "backend": args.backend, "address": args.address}
     result: Any
-    if args.study == "tracks":
+    if args.study in ("tracks", "cars"):
         names = _split(args.controllers)
-        options: dict[str, Any] = {
-            "kmpc_samples": args.kmpc_samples,
-            "fault": args.fault,
-            "epochs": args.epochs,
-        }
+        options: dict[str, Any] = {"kmpc_samples": args.kmpc_samples, "epochs": args.epochs}
+        if args.study == "tracks":
+            options["fault"] = args.fault
         if args.cache_dir is not None:
             options["cache_dir"] = str(args.cache_dir)
         config = TracksStudyConfig(
             tracks=expand_tracks(args.tracks.split(",")),
             controllers=names,
             seeds=_ints(args.seeds, "--seeds"),
-            scale=args.scale,
-            vehicle=args.vehicle,
+            scale=args.scale if args.study == "tracks" else None,
+            vehicle=args.vehicle if args.study == "tracks" else "f1tenth",
             baseline="lmpc" if "lmpc" in names else None,
             study_options=options,
         )
-        result = study_tracks(config, **where, progress=_study_progress(console), say=console.print)
+        if args.study == "tracks":
+            result = study_tracks(config, **where, progress=_study_progress(console), say=console.print)
+        else:
+            cars_config = CarsStudyConfig(cars=_split(args.cars), tracks=config)
+            result = study_cars(cars_config, **where, progress=_study_progress(console), say=console.print)
+            save_figure(plot_cars_study(*result.plot_data()), args.out / "study_cars.png")
     else:
         data_config = DataStudyConfig(
             track=args.track,

@@ -59,6 +59,7 @@ def _log(t, progress, lateral, heading, wheel, solve_s, speed, yaw_rate) -> Step
         )
         row["s"] = row["progress"] % LAP
         row["status"] = 0.0
+        row["cmd_steer"] = 2.0 * row["wheel_angle"]  # a servo that halves the command
         log.append(np.array([row[c] for c in COLUMNS]))
     return log
 
@@ -84,6 +85,8 @@ def test_every_field_against_hand_computation():
     assert m.heading_error_mean_rad == pytest.approx((0.01 + 0.02 + 0.03 + 0.04 + 0.0) / 5)
     # |diff| of the wheel angle: 0.1, 0.05, 0, 0.1 over dt = 0.1 s.
     assert m.steer_rate_mean_rad_s == pytest.approx((1.0 + 0.5 + 0.0 + 1.0) / 4)
+    # The commanded angle moves twice as much: the rate of the command, not of the wheel.
+    assert m.command_rate_mean_rad_s == pytest.approx(2.0 * (1.0 + 0.5 + 0.0 + 1.0) / 4)
     assert m.solve_ms_mean == pytest.approx(3.0)
     assert m.solve_ms_p99 == pytest.approx(4.0 + 0.96 * 1.0)  # linear interpolation at rank 0.99 * 4
     assert m.solve_ms_max == pytest.approx(5.0)
@@ -197,7 +200,7 @@ def test_mapping_behaviour():
     m = lap_metrics(_result(_first_lap_log()))
     assert m["lateral_error_mean_m"] == m.lateral_error_mean_m
     assert list(m) == list(METRIC_KEYS)
-    assert len(m) == len(METRIC_KEYS) == 13
+    assert len(m) == len(METRIC_KEYS) == 14
     as_dict = dict(m)
     assert list(as_dict) == list(METRIC_KEYS)
     assert as_dict["steps"] == 5 and as_dict["completed"] is True
@@ -221,3 +224,11 @@ def test_json_round_trip():
     assert LapMetrics.from_json(json.loads(json.dumps(short.to_json()))) == short
     with pytest.raises(KeyError):
         LapMetrics.from_json({k: v for k, v in data.items() if k != "steps"})
+
+
+def test_results_written_before_the_command_rate_still_load():
+    data = lap_metrics(_result(_first_lap_log())).to_json()
+    del data["command_rate_mean_rad_s"]
+    old = LapMetrics.from_json(data)
+    assert old.command_rate_mean_rad_s is None
+    assert old.lateral_error_mean_m == data["lateral_error_mean_m"]

@@ -30,6 +30,7 @@ def _metrics(lat: float | None, head: float, rate: float, **changes) -> dict:
         "lateral_error_max_m": 0.1234,
         "heading_error_mean_rad": head,
         "steer_rate_mean_rad_s": rate,
+        "command_rate_mean_rad_s": rate,
         "solve_ms_mean": 1.5,
         "solve_ms_p99": 3.25,
         "solve_ms_max": 4.0,

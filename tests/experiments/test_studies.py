@@ -34,6 +34,7 @@ def _metrics(lat: float, completed: bool = True, progress: float = 1.0, **extra:
         "lateral_error_max_m": 3 * lat,
         "heading_error_mean_rad": lat / 2,
         "steer_rate_mean_rad_s": 0.1,
+        "command_rate_mean_rad_s": 0.2,
         "solve_ms_mean": 0.5,
         "solve_ms_p99": 1.0,
         "solve_ms_max": 2.0,

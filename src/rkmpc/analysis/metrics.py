@@ -21,6 +21,7 @@ METRIC_KEYS = (
     "lateral_error_max_m",
     "heading_error_mean_rad",
     "steer_rate_mean_rad_s",
+    "command_rate_mean_rad_s",
     "solve_ms_mean",
     "solve_ms_p99",
     "solve_ms_max",
@@ -28,6 +29,10 @@ METRIC_KEYS = (
     "steps",
     "lateral_accel_max_m_s2",
 )
+
+
+#: Keys added after the first result files were written; older files read them as None.
+_ADDED_KEYS = frozenset({"command_rate_mean_rad_s"})
 
 
 @dataclass(frozen=True)
@@ -45,6 +50,7 @@ class LapMetrics(Mapping[str, Any]):
     lateral_error_max_m: float | None
     heading_error_mean_rad: float | None
     steer_rate_mean_rad_s: float | None
+    command_rate_mean_rad_s: float | None
     solve_ms_mean: float | None
     solve_ms_p99: float | None
     solve_ms_max: float | None
@@ -70,7 +76,11 @@ class LapMetrics(Mapping[str, Any]):
     @classmethod
     def from_json(cls, data: Mapping[str, Any]) -> LapMetrics:
         """Metrics read back from :meth:`to_json` output (extra keys are ignored)."""
-        return cls(**{key: data[key] for key in METRIC_KEYS})
+        # Files written before the commanded-steering rate was measured lack only that key.
+        values: dict[str, Any] = {
+            key: data[key] if key in data or key not in _ADDED_KEYS else None for key in METRIC_KEYS
+        }
+        return cls(**values)
 
 
 def lap_metrics(result: SimResult, laps: int = 1) -> LapMetrics:
@@ -95,7 +105,10 @@ def lap_metrics(result: SimResult, laps: int = 1) -> LapMetrics:
         ``lateral_error_mean_m`` and ``lateral_error_max_m`` (absolute offset
         from the reference path, m), ``heading_error_mean_rad`` (mean absolute
         heading error, rad), ``steer_rate_mean_rad_s`` (mean absolute rate of
-        the actual front wheel angle, rad/s), ``solve_ms_mean``,
+        the actual front wheel angle, rad/s), ``command_rate_mean_rad_s``
+        (mean absolute rate of the commanded wheel angle, rad/s: on a servo
+        that limit-cycles, the actual rate says nothing about the
+        controller), ``solve_ms_mean``,
         ``solve_ms_p99``, ``solve_ms_max`` (controller step time, ms),
         ``fallback_count``, ``steps`` and ``lateral_accel_max_m_s2`` (largest
         ``|speed * yaw rate|`` of the true state, m/s^2; None when the plant
@@ -111,6 +124,8 @@ def lap_metrics(result: SimResult, laps: int = 1) -> LapMetrics:
     wheel = log["wheel_angle"][first_lap]
     dt = float(np.median(np.diff(t))) if n > 1 else math.nan
     steer_rate = np.abs(np.diff(wheel)) / dt if len(wheel) > 1 else np.array([math.nan])
+    commanded = log["cmd_steer"][first_lap]
+    command_rate = np.abs(np.diff(commanded)) / dt if len(commanded) > 1 else np.array([math.nan])
     solve_ms = 1e3 * log["solve_time_s"][first_lap]
     solve_ms = solve_ms[np.isfinite(solve_ms)]
     return LapMetrics(
@@ -121,6 +136,7 @@ def lap_metrics(result: SimResult, laps: int = 1) -> LapMetrics:
         lateral_error_max_m=float(lat.max()) if lat.size else None,
         heading_error_mean_rad=_mean(head),
         steer_rate_mean_rad_s=_mean(steer_rate),
+        command_rate_mean_rad_s=_mean(command_rate),
         solve_ms_mean=_mean(solve_ms),
         solve_ms_p99=float(np.percentile(solve_ms, 99)) if solve_ms.size else None,
         solve_ms_max=float(solve_ms.max()) if solve_ms.size else None,

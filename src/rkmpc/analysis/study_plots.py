@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -88,3 +88,48 @@ def plot_data_study(series: Sequence[VolumeSeries], baseline_lateral: float | No
     ax_done.set_ylim(-0.05, 1.05)
     fig.suptitle(title)
     return fig
+
+
+def plot_cars_study(
+    cars: Sequence[str],
+    controllers: Sequence[str],
+    lateral: Mapping[str, Mapping[str, Stats]],
+    completion: Mapping[str, Mapping[str, float]],
+) -> Figure:
+    """Mean lateral error and completion rate per car of the zoo, one bar per controller.
+
+    Left: mean over tracks and seeds of the mean lateral error of the
+    completed laps (bar) with its range (error bar, min to max), logarithmic;
+    right: the fraction of laps completed.
+
+    Parameters
+    ----------
+    cars, controllers : sequence of str
+        The groups (x axis) and the bars in each group.
+    lateral : mapping
+        ``lateral[car][controller]``: statistics of the mean lateral error (m).
+    completion : mapping
+        ``completion[car][controller]``: completed laps / runs (-).
+    """
+    figure = Figure(figsize=(max(8.0, 1.3 * len(cars) * 2), 4.5), layout="constrained")
+    ax_lat, ax_done = figure.subplots(1, 2, width_ratios=(3, 2))
+    x = np.arange(len(cars))
+    width = 0.8 / max(len(controllers), 1)
+    for i, name in enumerate(controllers):
+        offset = x + (i - (len(controllers) - 1) / 2) * width
+        stats_ = [lateral[car][name] for car in cars]
+        mean = np.array([np.nan if s.mean is None else s.mean for s in stats_])
+        low = np.array([np.nan if s.min is None else s.min for s in stats_])
+        high = np.array([np.nan if s.max is None else s.max for s in stats_])
+        ax_lat.bar(offset, mean, width, label=name)
+        ax_lat.errorbar(offset, mean, yerr=[mean - low, high - mean], fmt="none", ecolor="k", lw=0.8)
+        ax_done.bar(offset, [completion[car][name] for car in cars], width, label=name)
+    for ax in (ax_lat, ax_done):
+        ax.set_xticks(x, list(cars), rotation=30, ha="right")
+    ax_lat.set_yscale("log")
+    ax_lat.set_ylabel("mean lateral error (m), completed laps")
+    ax_done.set_ylabel("laps completed (-)")
+    ax_done.set_ylim(0, 1.05)
+    ax_lat.legend(fontsize="small", ncols=2)
+    figure.suptitle("controllers on cars they were not built for")
+    return figure

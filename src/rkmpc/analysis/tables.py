@@ -17,6 +17,7 @@ TABLE_COLUMNS: tuple[tuple[str, str, str], ...] = (
     ("lateral_error_max_m", "lat. max (m)", "{:.3f}"),
     ("heading_error_mean_rad", "head. err (rad)", "{:.4f}"),
     ("steer_rate_mean_rad_s", "wheel rate (rad/s)", "{:.4f}"),
+    ("command_rate_mean_rad_s", "cmd rate (rad/s)", "{:.4f}"),
     ("solve_ms_mean", "t mean (ms)", "{:.3f}"),
     ("solve_ms_p99", "t p99 (ms)", "{:.3f}"),
     ("solve_ms_max", "t max (ms)", "{:.3f}"),

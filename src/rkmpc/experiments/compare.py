@@ -27,6 +27,7 @@ from rkmpc.sim.faults import DEFAULT_NOISE, get_fault
 from rkmpc.sim.log import StepLog
 from rkmpc.sim.run import RunSpec, run_record
 from rkmpc.sim.scenario import Scenario, load_scenario
+from rkmpc.vehicle.zoo import get_car
 
 __all__ = [
     "ALL_CONTROLLERS",
@@ -96,6 +97,10 @@ class CompareConfig:
     epochs : int or None
         Training epochs of every learned model (None: the recipes' defaults); small values make
         quick trials.
+    car : str or None
+        A car of the zoo (:func:`rkmpc.vehicle.zoo.get_car`) to drive instead of the vehicle
+        preset's plant; the data are recorded on it and every controller keeps the preset's
+        nominal parameters.
     """
 
     track: str
@@ -116,6 +121,7 @@ class CompareConfig:
     noise: bool = False
     run_laps: int = 1
     epochs: int | None = None
+    car: str | None = None
 
     def __post_init__(self) -> None:
         for name, minimum in (("laps", 1), ("seed", 0), ("run_laps", 1), ("kmpc_samples", 1000)):
@@ -128,6 +134,8 @@ class CompareConfig:
             raise ParameterError("CompareConfig.controllers is empty")
         if self.fault is not None:
             get_fault(self.fault)
+        if self.car is not None:
+            get_car(self.car)
 
     def plan(self) -> ModelPlan:
         """What to learn for the comparison."""
@@ -147,7 +155,9 @@ class CompareConfig:
 
     def scenario(self) -> Scenario:
         """The track, car and reference of the comparison."""
-        return load_scenario(self.track, raceline=self.raceline, scale=self.scale, vehicle=self.vehicle)
+        return load_scenario(
+            self.track, raceline=self.raceline, scale=self.scale, vehicle=self.vehicle, car=self.car
+        )
 
 
 def fault_effect(nominal: Mapping[str, Any], faulted: Mapping[str, Any], outcome: str) -> str:

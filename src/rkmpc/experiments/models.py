@@ -107,6 +107,8 @@ def train_excitation_model(
         "rkmpc_version": RKMPC_VERSION,
         "code": _code_hash(),
     }
+    if scenario.car is not None:  # keys of the presets' own plants stay as they were
+        spec["car"] = scenario.car.describe()
 
     def build() -> tuple[KoopmanModel, ModelRecord]:
         t0 = time.perf_counter()

@@ -9,8 +9,7 @@ from rkmpc.core.versions import versions
 from rkmpc.learning.data.dataset import TransitionDataset
 from rkmpc.learning.data.excitation import ExcitationConfig, random_excitation
 from rkmpc.sim.run import RunSpec, drive
-from rkmpc.sim.scenario import Scenario, vehicle_preset
-from rkmpc.vehicle.registry import make_plant
+from rkmpc.sim.scenario import Scenario
 from rkmpc.vehicle.wrappers import NoiseStd
 
 
@@ -58,6 +57,7 @@ def collect(
     metadata: dict[str, Any] = {
         "source": "collect",
         "vehicle": scenario.vehicle_name,
+        "car": None if scenario.car is None else scenario.car.name,
         "track": scenario.track.name,
         "scale": scenario.track.scale,
         "dt": scenario.dt,
@@ -97,12 +97,13 @@ def collect_excitation(scenario: Scenario, *, n_samples: int = 50_000, seed: int
         speed_range=(scenario.limits.min_speed, scenario.limits.max_speed),
         seed=seed,
     )
-    plant = make_plant(vehicle_preset(scenario.vehicle_name).plant)
+    plant = scenario.make_plant(seed)
     obs, command, next_obs, episode = random_excitation(plant, config, dt=scenario.dt)
     all_versions = versions()
     metadata: dict[str, Any] = {
         "source": "excitation",
         "vehicle": scenario.vehicle_name,
+        "car": None if scenario.car is None else scenario.car.name,
         "dt": scenario.dt,
         "wheelbase": scenario.vehicle.wheelbase,
         "seed": seed,

@@ -13,7 +13,6 @@ from rkmpc.sim.closed_loop import SimConfig, SimResult, simulate
 from rkmpc.sim.faults import DEFAULT_NOISE, NoiseFault, get_fault
 from rkmpc.sim.scenario import Scenario, vehicle_preset
 from rkmpc.vehicle.plants.base import Plant
-from rkmpc.vehicle.registry import make_plant
 from rkmpc.vehicle.wrappers import NoiseStd, ObservationNoise
 
 __all__ = ["DEFAULT_NOISE", "RunSpec", "build_plant", "drive", "run_record"]
@@ -64,7 +63,7 @@ class RunSpec:
 
 def build_plant(scenario: Scenario, spec: RunSpec) -> Plant:
     """The scenario's plant with the spec's fault applied, wrapped with measurement noise when asked for."""
-    plant = make_plant(vehicle_preset(scenario.vehicle_name).plant)
+    plant = scenario.make_plant(spec.seed)
     if spec.fault is not None:
         plant = get_fault(spec.fault).apply(plant, scenario, spec.seed)
     if spec.noise is not None:

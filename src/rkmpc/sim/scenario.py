@@ -19,6 +19,9 @@ from rkmpc.track.reference import Reference
 from rkmpc.track.speed_profile import SpeedLimits, speed_profile
 from rkmpc.track.track import Track
 from rkmpc.vehicle.params import VehicleParams, f1tenth, fullsize
+from rkmpc.vehicle.plants.base import Plant
+from rkmpc.vehicle.registry import make_plant
+from rkmpc.vehicle.zoo import CarSpec, get_car
 
 
 @dataclass(frozen=True)
@@ -96,6 +99,10 @@ class Scenario:
         Time-indexed reference along the track's reference path.
     dt : float
         Control period (s).
+    car : CarSpec or None, optional
+        The car actually driven, from the zoo (:mod:`rkmpc.vehicle.zoo`); the
+        controllers still get ``vehicle``, the preset's nominal parameters.
+        None drives the preset's own plant.
     """
 
     track: Track
@@ -104,6 +111,13 @@ class Scenario:
     limits: SpeedLimits
     reference: Reference
     dt: float
+    car: CarSpec | None = None
+
+    def make_plant(self, seed: int = 0) -> Plant:
+        """A fresh plant of the car this scenario drives (``seed``: its odometry noise, if any)."""
+        if self.car is not None:
+            return self.car.make_plant(seed)
+        return make_plant(vehicle_preset(self.vehicle_name).plant)
 
     def describe(self) -> dict[str, object]:
         """A JSON-ready description for result files."""
@@ -122,6 +136,7 @@ class Scenario:
                 "min_speed": self.limits.min_speed,
             },
             "dt": self.dt,
+            "car": None if self.car is None else self.car.describe(),
         }
 
 
@@ -141,6 +156,7 @@ def load_scenario(
     vehicle: str = "f1tenth",
     limits: SpeedLimits | None = None,
     dt: float = 0.05,
+    car: str | None = None,
 ) -> Scenario:
     """Build a scenario from a track name or file and a vehicle preset.
 
@@ -161,8 +177,15 @@ def load_scenario(
         Speed-profile limits; defaults to the vehicle preset's.
     dt : float
         Control period (s).
+    car : str or None
+        A zoo car to drive instead of the preset's plant (:func:`rkmpc.vehicle.zoo.get_car`:
+        a variant name or ``"random-<seed>"``); only with the ``f1tenth`` preset, whose
+        nominal parameters the controllers keep.
     """
     preset = vehicle_preset(vehicle)
+    if car is not None and vehicle != "f1tenth":
+        raise ValueError(f"zoo cars are 1:10 cars; --car {car!r} needs --vehicle f1tenth, not {vehicle!r}")
+    the_car = None if car is None else get_car(car)
     params = preset.params()
     if str(track) in list_builtin_tracks():
         the_track = builtin_track(str(track))
@@ -184,4 +207,5 @@ def load_scenario(
         limits=the_limits,
         reference=reference,
         dt=dt,
+        car=the_car,
     )

@@ -175,3 +175,57 @@ class CommandDelay(PlantWrapper):
             raise ValueError(f"dt must be finite and > 0, got {dt!r}")
         self._queue.append(command)
         self.plant.step(self._queue.popleft(), dt)
+
+
+class ObservationDelay(PlantWrapper):
+    """Odometry that arrives ``latency`` seconds late (a localisation filter's age).
+
+    Each :meth:`step` is split into pieces of at most ``sample_period`` on the
+    wrapped plant, and the observation after each piece is kept; :meth:`observe`
+    returns the newest kept observation at least ``latency`` old (its ``time``
+    is when it was true). Before ``latency`` has passed since :meth:`reset`, the
+    observation of the reset state is returned. Wrap a plant whose commands act
+    in time (an :class:`~rkmpc.vehicle.plants.base.ActuatedPlant`), not a
+    :class:`CommandDelay`, which counts steps.
+
+    Parameters
+    ----------
+    plant : Plant
+        The plant to wrap.
+    latency : float
+        Age of every observation (s), >= 0; exact when a multiple of the
+        pieces into which steps are split.
+    sample_period : float, optional
+        Longest piece (s), > 0.
+    """
+
+    def __init__(self, plant: Plant, latency: float, sample_period: float = 0.005) -> None:
+        if not (math.isfinite(latency) and latency >= 0.0):
+            raise ParameterError(f"ObservationDelay.latency must be finite and >= 0, got {latency!r}")
+        if not (math.isfinite(sample_period) and sample_period > 0.0):
+            raise ParameterError(
+                f"ObservationDelay.sample_period must be finite and > 0, got {sample_period!r}"
+            )
+        super().__init__(plant)
+        self.latency = float(latency)
+        self.sample_period = float(sample_period)
+        self._history: deque[Observation] = deque([plant.observe()])
+
+    def reset(self, x: float, y: float, yaw: float, speed: float, steer: float = 0.0) -> None:
+        super().reset(x, y, yaw, speed, steer)
+        self._history = deque([self.plant.observe()])
+
+    def step(self, command: Command, dt: float) -> None:
+        if not (math.isfinite(dt) and dt > 0.0):
+            raise ValueError(f"dt must be finite and > 0, got {dt!r}")
+        pieces = max(1, math.ceil(dt / self.sample_period - 1e-9))
+        for _ in range(pieces):
+            self.plant.step(command, dt / pieces)
+            self._history.append(self.plant.observe())
+        due = self.plant.time - self.latency + 1e-9
+        history = self._history
+        while len(history) > 1 and history[1].time <= due:
+            history.popleft()
+
+    def observe(self) -> Observation:
+        return self._history[0]

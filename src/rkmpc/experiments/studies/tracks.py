@@ -39,7 +39,14 @@ from rkmpc.experiments.studies.common import (
 )
 from rkmpc.learning.recipes import recipe_for
 
-__all__ = ["TrackJob", "TracksStudyConfig", "TracksStudyResult", "study_tracks"]
+__all__ = [
+    "TrackJob",
+    "TracksStudyConfig",
+    "TracksStudyResult",
+    "study_tracks",
+    "summary_table",
+    "train_shared_models",
+]
 
 
 @dataclass(frozen=True)
@@ -234,7 +241,7 @@ def study_tracks(
         raise ParameterError("study_tracks: config must be a TracksStudyConfig")
     check_parallel(n_jobs, backend)
     tell = say if say is not None else (lambda _msg: None)
-    _train_shared_models(config, tell)
+    train_shared_models([config.job_config(config.tracks[0], seed) for seed in config.seeds], tell)
     tell(f"{len(config.tracks)} tracks x {len(config.seeds)} seeds on {n_jobs} {backend} workers")
     keys = [(spec, seed) for spec in config.tracks for seed in config.seeds]
     jobs = [Job(f"{spec} seed {seed}", compare, (config.job_config(spec, seed),)) for spec, seed in keys]
@@ -267,12 +274,12 @@ def study_tracks(
     )
 
 
-def _train_shared_models(config: TracksStudyConfig, tell: Callable[[str], None]) -> None:
-    """Train the track-independent models of the jobs once, into the cache they read."""
-    for seed in config.seeds:
-        job = config.job_config(config.tracks[0], seed)
+def train_shared_models(jobs: Sequence[CompareConfig], tell: Callable[[str], None]) -> None:
+    """Train the track-independent models of ``jobs`` (one per seed and car) once, into their cache."""
+    for job in jobs:
         if not job.use_cache:
             return
+        seed = job.seed
         plan = job.plan()
         shared = [
             r for name in plan.controllers if (r := recipe_for(name)) is not None and r.data == "excitation"
@@ -294,14 +301,17 @@ def _train_shared_models(config: TracksStudyConfig, tell: Callable[[str], None])
 #: Columns of the tracks tables: metric, header, number format.
 _TRACK_COLUMNS = (
     ("lateral_error_mean_m", "lat (m)", ".4f"),
+    ("lateral_error_max_m", "lat max (m)", ".3f"),
     ("heading_error_mean_rad", "head (rad)", ".4f"),
     ("steer_rate_mean_rad_s", "rate (rad/s)", ".4f"),
+    ("command_rate_mean_rad_s", "cmd rate (rad/s)", ".4f"),
 )
 _SOLVE = ("solve_ms_mean", "solve_ms_p99", "solve_ms_max")
 
 
-def _summary_table(result: TracksStudyResult) -> str:
-    baseline = result.config.baseline
+def summary_table(summary: Mapping[str, ControllerSummary], config: TracksStudyConfig) -> str:
+    """Markdown: one row per controller of ``config``, ``mean ± std [min, max]`` of each metric."""
+    baseline = config.baseline
     head = ["controller", "completed", "failed jobs"]
     for _, label, _ in _TRACK_COLUMNS:
         head.append(label)
@@ -309,8 +319,8 @@ def _summary_table(result: TracksStudyResult) -> str:
             head.append(f"{label.split(' ')[0]} vs {baseline}")
     head += ["solve mean (ms)", "solve p99 (ms)", "solve max (ms)"]
     rows = []
-    for name in result.config.controllers:
-        s = result.summary[name]
+    for name in config.controllers:
+        s = summary[name]
         cells = [name, f"{s.completed}/{s.jobs}", str(s.failed_jobs)]
         for key, _, spec in _TRACK_COLUMNS:
             cells.append(fmt_stats(s.metrics[key], spec))
@@ -326,7 +336,7 @@ def _row_cells(row: RunRow, baseline: str | None) -> list[str]:
     if row.status != "ran":
         error = str(row.error or "").splitlines()
         cells.append("FAILED: " + error[0][:80].replace("|", "/") if error else row.status)
-        return cells + ["-"] * (4 + (1 if baseline else 0))
+        return cells + ["-"] * (len(_TRACK_COLUMNS) + 2 + (1 if baseline else 0))
     progress = row.metrics["progress"]
     cells.append("yes" if row.completed else "NO " + format(progress or 0.0, ".0%"))
     cells += [fmt(row.metrics[k], spec) for k, _, spec in _TRACK_COLUMNS]
@@ -345,9 +355,9 @@ def tracks_markdown(result: TracksStudyResult) -> str:
         f"Tracks: {len(result.config.tracks)}, seeds: {', '.join(str(s) for s in result.config.seeds)}.",
         "",
     ]
-    head = ["track", "seed", "controller", "done", "lat (m)", "head (rad)", "rate (rad/s)"]
+    head = ["track", "seed", "controller", "done", *(label for _, label, _ in _TRACK_COLUMNS)]
     if baseline:
-        head.append(f"vs {baseline} lat / head / rate")
+        head.append(f"vs {baseline}: " + " / ".join(label.split(" (")[0] for _, label, _ in _TRACK_COLUMNS))
     head.append("t mean / p99 / max (ms)")
     rows = [_row_cells(row, baseline) for row in result.rows]
-    return "\n".join(lines) + _summary_table(result) + "\n" + markdown(head, rows)
+    return "\n".join(lines) + summary_table(result.summary, result.config) + "\n" + markdown(head, rows)

@@ -40,14 +40,13 @@ from collections.abc import Callable
 import numpy as np
 
 from rkmpc.core.observation import Observation
+from rkmpc.vehicle.chassis import build_chassis
 from rkmpc.vehicle.friction import FrictionSchedule
 from rkmpc.vehicle.params import VehicleParams, f1tenth
 from rkmpc.vehicle.plants.base import ActuatedPlant, single_track_observation
+from rkmpc.vehicle.tyres import PacejkaTyre
 
 __all__ = ["DynamicPlant"]
-
-#: Time constant (s) with which side-slip and yaw rate relax to their kinematic values.
-KINEMATIC_RELAXATION_TIME = 0.02
 
 _Derivative = tuple[float, float, float, float, float, float, float]
 _Rhs = Callable[[float, float, float, float, float, float, float, float], _Derivative]
@@ -56,34 +55,20 @@ _Rhs = Callable[[float, float, float, float, float, float, float, float], _Deriv
 def _build_rhs(p: VehicleParams) -> _Rhs:
     """Return the right-hand side ``f(yaw, v, beta, r, delta, v_cmd, delta_cmd, mu)``.
 
-    The constants are bound as closure variables so the inner loop touches
-    no attributes. ``v_cmd`` and ``delta_cmd`` must already be clipped to the
+    The servo lag and the speed loop act inside the derivative (so RK4
+    integrates them with the chassis); :func:`rkmpc.vehicle.chassis.build_chassis`
+    gives the rest. ``v_cmd`` and ``delta_cmd`` must already be clipped to the
     actuator limits.
     """
-    sin, cos, tan, atan = math.sin, math.cos, math.tan, math.atan
-    mass = p.mass
-    inertia = p.yaw_inertia
-    lf, lr = p.lf, p.lr
-    length = p.wheelbase
-    lr_frac = lr / length
-    fz_f_static = mass * p.gravity * lr / length
-    fz_r_static = mass * p.gravity * lf / length
-    load_shift = mass * p.h_cg / length
-    bf, cf, df, ef = p.tyre_front.B, p.tyre_front.C, p.tyre_front.D, p.tyre_front.E
-    br, cr, d_rear, er = p.tyre_rear.B, p.tyre_rear.C, p.tyre_rear.D, p.tyre_rear.E
+    chassis = build_chassis(p, PacejkaTyre(p.tyre_front).build(), PacejkaTyre(p.tyre_rear).build())
     tau_v = p.drive.time_constant
     max_accel, max_brake = p.drive.max_accel, p.drive.max_brake
     tau_s = p.steering.time_constant
     max_rate = p.steering.max_rate
-    v_low = p.blend_speed_low
-    inv_blend = 1.0 / (p.blend_speed_high - p.blend_speed_low)
-    inv_relax = 1.0 / KINEMATIC_RELAXATION_TIME
-    v_floor = 1e-3
 
     def rhs(
         yaw: float, v: float, beta: float, r: float, delta: float, v_cmd: float, delta_cmd: float, mu: float
     ) -> _Derivative:
-        # Actuators.
         acc = (v_cmd - v) / tau_v
         if acc > max_accel:
             acc = max_accel
@@ -96,50 +81,7 @@ def _build_rhs(p: VehicleParams) -> _Rhs:
             ddelta = max_rate
         elif ddelta < -max_rate:
             ddelta = -max_rate
-
-        heading = yaw + beta
-        dx = v * cos(heading)
-        dy = v * sin(heading)
-
-        w = (v - v_low) * inv_blend
-        if w < 0.0:
-            w = 0.0
-        elif w > 1.0:
-            w = 1.0
-
-        dyaw = dbeta = dr = 0.0
-        if w < 1.0:
-            tan_d = tan(delta)
-            cos_d = cos(delta)
-            sec2 = 1.0 / (cos_d * cos_d)
-            q = lr_frac * tan_d
-            beta_k = atan(q)
-            cos_bk = cos(beta_k)
-            dbeta_k = lr_frac * sec2 * ddelta / (1.0 + q * q)
-            r_k = v * cos_bk * tan_d / length
-            dr_k = (
-                acc * cos_bk * tan_d - v * sin(beta_k) * dbeta_k * tan_d + v * cos_bk * sec2 * ddelta
-            ) / length
-            wk = 1.0 - w
-            dyaw = wk * r_k
-            dbeta = wk * (dbeta_k + (beta_k - beta) * inv_relax)
-            dr = wk * (dr_k + (r_k - r) * inv_relax)
-        if w > 0.0:
-            cos_b = cos(beta)
-            vx = v * cos_b
-            if vx < v_floor:
-                vx = v_floor
-            vy = v * sin(beta)
-            alpha_f = delta - atan((vy + lf * r) / vx)
-            alpha_r = -atan((vy - lr * r) / vx)
-            shift = load_shift * acc
-            ba = bf * alpha_f
-            fy_f = mu * (fz_f_static - shift) * df * sin(cf * atan(ba - ef * (ba - atan(ba))))
-            ba = br * alpha_r
-            fy_r = mu * (fz_r_static + shift) * d_rear * sin(cr * atan(ba - er * (ba - atan(ba))))
-            dyaw += w * r
-            dbeta += w * ((fy_f * cos(delta - beta) + fy_r * cos_b) / (mass * v) - r)
-            dr += w * (lf * fy_f * cos(delta) - lr * fy_r) / inertia
+        dx, dy, dyaw, dbeta, dr = chassis(yaw, v, beta, r, delta, ddelta, acc, mu)
         return dx, dy, dyaw, acc, dbeta, dr, ddelta
 
     return rhs

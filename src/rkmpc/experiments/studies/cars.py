@@ -1,0 +1,321 @@
+"""Every controller on cars it was not built for: :func:`study_cars`.
+
+For each car of the zoo (:mod:`rkmpc.vehicle.zoo`), track and seed, one job
+runs the comparison of :func:`rkmpc.experiments.compare.compare` with
+``car=<variant>``: two LMPC laps are recorded on THAT car, the learned
+controllers are trained or identified from them (KMPC from random excitation
+of that car), and every controller, built with the nominal parameters, drives
+it. Jobs run in parallel (:func:`rkmpc.experiments.parallel.run_jobs`); each
+car is summarised like a tracks study, and :meth:`CarsStudyResult.targets`
+checks the targets of RKMPC against the LMPC on every (car, track, seed).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import asdict, dataclass, replace
+from typing import Any
+
+from rkmpc.analysis.statistics import ControllerSummary, Stats, summarise_runs
+from rkmpc.analysis.tables import fmt, markdown
+from rkmpc.core.errors import ParameterError
+from rkmpc.core.jsonutil import to_json_ready
+from rkmpc.experiments.compare import CompareConfig, compare
+from rkmpc.experiments.parallel import Job, JobOutcome, run_jobs
+from rkmpc.experiments.studies.common import check_parallel, str_tuple, study_versions
+from rkmpc.experiments.studies.tracks import TrackJob, TracksStudyConfig, summary_table, train_shared_models
+from rkmpc.vehicle.zoo import get_car
+
+__all__ = [
+    "CARS_CONTROLLERS",
+    "DEFAULT_CARS",
+    "CarJob",
+    "CarTargets",
+    "CarsStudyConfig",
+    "CarsStudyResult",
+    "study_cars",
+]
+
+#: Cars of ``rkmpc study cars`` by default: every named variant but the nominal one.
+DEFAULT_CARS = ("gym", "overshoot", "cheap-servo", "low-grip", "heavy-long", "light-short", "laggy-odom")
+
+#: Controllers of the cars study, in table order.
+CARS_CONTROLLERS = ("pp", "lmpc", "lmpc-id", "nmpc-dynamic", "kmpc", "rkmpc-paper", "rkmpc")
+
+
+@dataclass(frozen=True)
+class CarsStudyConfig:
+    """Settings of :func:`study_cars`.
+
+    Parameters
+    ----------
+    cars : sequence of str
+        Zoo variants (:func:`rkmpc.vehicle.zoo.get_car` names, ``"random-<seed>"`` included).
+    tracks : TracksStudyConfig
+        Tracks, controllers, seeds and comparison settings, applied to every car
+        (its ``vehicle`` must be ``"f1tenth"``: the zoo holds 1:10 cars).
+    """
+
+    cars: Sequence[str]
+    tracks: TracksStudyConfig
+
+    def __post_init__(self) -> None:
+        cars = str_tuple("CarsStudyConfig.cars", self.cars)
+        for name in cars:
+            get_car(name)
+        object.__setattr__(self, "cars", cars)
+        if not isinstance(self.tracks, TracksStudyConfig):
+            raise ParameterError("CarsStudyConfig.tracks must be a TracksStudyConfig")
+        if self.tracks.vehicle != "f1tenth":
+            raise ParameterError(f"CarsStudyConfig: zoo cars are 1:10 cars, not {self.tracks.vehicle!r}")
+        if "car" in self.tracks.study_options:
+            raise ParameterError("CarsStudyConfig: give the cars in `cars`, not in the tracks' study_options")
+
+    def job_config(self, car: str, track: str, seed: int) -> CompareConfig:
+        """The comparison of one (car, track, seed) job."""
+        return replace(self.tracks.job_config(track, seed), car=car)
+
+
+@dataclass(frozen=True)
+class CarJob:
+    """One (car, track, seed) job: the car and the job's outcome."""
+
+    car: str
+    job: TrackJob
+
+    def to_json(self) -> dict[str, Any]:
+        return {"car": self.car, **self.job.to_json()}
+
+
+#: Targets of RKMPC against the LMPC: largest allowed change (%) of each metric.
+TARGET_LIMITS: Mapping[str, float] = {
+    "lateral_pct": -40.0,
+    "heading_pct": -30.0,
+    "lateral_max_pct": 0.0,
+    "command_rate_pct": 0.0,
+}
+
+
+@dataclass(frozen=True)
+class CarTargets:
+    """RKMPC against the LMPC on one (car, track, seed), and whether each target holds.
+
+    Targets: lateral error <= -40 %, heading error <= -30 %, maximum lateral
+    error no larger than the LMPC's, commanded-steering rate no larger than
+    the LMPC's; all on completed laps of both.
+    """
+
+    car: str
+    track: str
+    seed: int
+    lateral_pct: float | None
+    heading_pct: float | None
+    lateral_max_pct: float | None
+    command_rate_pct: float | None
+    both_completed: bool
+
+    def missed(self) -> list[str]:
+        """Names of the targets not met (all of them when a lap did not complete)."""
+        if not self.both_completed:
+            return list(TARGET_LIMITS)
+        return [k for k, limit in TARGET_LIMITS.items() if (v := getattr(self, k)) is None or v > limit]
+
+    def to_json(self) -> dict[str, Any]:
+        return {**asdict(self), "missed": self.missed()}
+
+
+@dataclass(frozen=True)
+class CarsStudyResult:
+    """What :func:`study_cars` found: a summary per car and controller, every job."""
+
+    config: CarsStudyConfig
+    parallel: dict[str, Any]
+    versions: dict[str, str]
+    wall_s: float
+    summary: dict[str, dict[str, ControllerSummary]]
+    jobs: list[CarJob]
+
+    def targets(self, learned: str = "rkmpc", baseline: str = "lmpc") -> list[CarTargets]:
+        """``learned`` against ``baseline`` on every job where both ran."""
+        out = []
+        for cj in self.jobs:
+            result = cj.job.result
+            if result is None or learned not in result.controllers or baseline not in result.controllers:
+                continue
+            a = result.controllers[learned].metrics
+            b = result.controllers[baseline].metrics
+            both = bool(a.completed and b.completed)
+
+            def pct(key: str, a: Any = a, b: Any = b) -> float | None:
+                x, y = a[key], b[key]
+                return None if x is None or y is None or y == 0 else 100.0 * (x - y) / y
+
+            out.append(
+                CarTargets(
+                    car=cj.car,
+                    track=result.track,
+                    seed=cj.job.seed,
+                    lateral_pct=pct("lateral_error_mean_m"),
+                    heading_pct=pct("heading_error_mean_rad"),
+                    lateral_max_pct=pct("lateral_error_max_m"),
+                    command_rate_pct=pct("command_rate_mean_rad_s"),
+                    both_completed=both,
+                )
+            )
+        return out
+
+    def plot_data(
+        self,
+    ) -> tuple[list[str], list[str], dict[str, dict[str, Stats]], dict[str, dict[str, float]]]:
+        """Arguments of :func:`rkmpc.analysis.study_plots.plot_cars_study`: cars, controllers,
+        lateral-error statistics and completion rates by car and controller."""
+        controllers = list(self.config.tracks.controllers)
+        lateral = {
+            car: {name: per[name].metrics["lateral_error_mean_m"] for name in controllers}
+            for car, per in self.summary.items()
+        }
+        rates = {
+            car: {name: per[name].completed / max(per[name].jobs, 1) for name in controllers}
+            for car, per in self.summary.items()
+        }
+        return list(self.config.cars), controllers, lateral, rates
+
+    def to_json(self) -> dict[str, Any]:
+        out = {
+            "study": "cars",
+            "cars": list(self.config.cars),
+            "cars_described": {name: get_car(name).describe() for name in self.config.cars},
+            "tracks": list(self.config.tracks.tracks),
+            "seeds": list(self.config.tracks.seeds),
+            "controllers": list(self.config.tracks.controllers),
+            "baseline": self.config.tracks.baseline,
+            "config": asdict(self.config.tracks),
+            "parallel": self.parallel,
+            "versions": self.versions,
+            "wall_s": self.wall_s,
+            "summary": {
+                car: {name: s.to_json() for name, s in per.items()} for car, per in self.summary.items()
+            },
+            "targets": [t.to_json() for t in self.targets()],
+            "jobs": [job.to_json() for job in self.jobs],
+        }
+        result = to_json_ready(out)
+        if not isinstance(result, dict):  # pragma: no cover - to_json_ready keeps mappings
+            raise TypeError("a study result must convert to a JSON object")
+        return result
+
+    def to_markdown(self) -> str:
+        """One summary table per car, then the targets of RKMPC against the LMPC on every run."""
+        parts = [
+            f"Cars: {', '.join(self.config.cars)}; tracks: {len(self.config.tracks.tracks)}; "
+            f"seeds: {', '.join(str(s) for s in self.config.tracks.seeds)}.",
+            "",
+        ]
+        for car in self.config.cars:
+            parts += [
+                f"### {car}: {get_car(car).summary}",
+                "",
+                summary_table(self.summary[car], self.config.tracks),
+                "",
+            ]
+        parts += ["### RKMPC against the LMPC, every run", "", targets_table(self.targets())]
+        return "\n".join(parts)
+
+
+def study_cars(
+    config: CarsStudyConfig,
+    *,
+    n_jobs: int = 1,
+    backend: str = "loky",
+    address: str | None = None,
+    progress: Callable[[JobOutcome, int, int], None] | None = None,
+    say: Callable[[str], None] | None = None,
+) -> CarsStudyResult:
+    """Compare the controllers on every car, track and seed, in parallel, and summarise per car.
+
+    Track-independent models (KMPC's random-excitation model) are trained once
+    per car and seed in this process first, into the model cache the jobs read.
+
+    Parameters
+    ----------
+    config : CarsStudyConfig
+        Cars, and the tracks study applied to each.
+    n_jobs, backend, address
+        Where the jobs run: :func:`rkmpc.experiments.parallel.run_jobs`.
+    progress : callable, optional
+        ``progress(outcome, done, total)`` as each job finishes.
+    say : callable, optional
+        Called with a short message before each slow stage.
+    """
+    if not isinstance(config, CarsStudyConfig):
+        raise ParameterError("study_cars: config must be a CarsStudyConfig")
+    check_parallel(n_jobs, backend)
+    tell = say if say is not None else (lambda _msg: None)
+    tracks = config.tracks
+    for car in config.cars:
+        train_shared_models([config.job_config(car, tracks.tracks[0], seed) for seed in tracks.seeds], tell)
+    keys = [(car, spec, seed) for car in config.cars for spec in tracks.tracks for seed in tracks.seeds]
+    tell(f"{len(config.cars)} cars x {len(tracks.tracks)} tracks x {len(tracks.seeds)} seeds")
+    jobs = [
+        Job(f"{car} {spec} seed {seed}", compare, (config.job_config(car, spec, seed),))
+        for car, spec, seed in keys
+    ]
+    t0 = time.perf_counter()
+    outcomes = run_jobs(
+        jobs, n_jobs=n_jobs, backend=backend, address=address, on_error="record", progress=progress
+    )
+    wall = time.perf_counter() - t0
+    records = [
+        CarJob(
+            car=car,
+            job=TrackJob(
+                spec=spec,
+                seed=seed,
+                ok=out.ok,
+                error=out.error,
+                traceback=out.traceback,
+                seconds=out.seconds,
+                result=out.value if out.ok else None,
+            ),
+        )
+        for (car, spec, seed), out in zip(keys, outcomes, strict=True)
+    ]
+    summary = {}
+    for car in config.cars:
+        groups = [cj.job.group() for cj in records if cj.car == car]
+        summary[car], _ = summarise_runs(groups, tracks.controllers, tracks.baseline)
+    return CarsStudyResult(
+        config=config,
+        parallel={"n_jobs": n_jobs, "backend": backend, "address": address},
+        versions=study_versions(),
+        wall_s=wall,
+        summary=summary,
+        jobs=records,
+    )
+
+
+def targets_table(targets: Sequence[CarTargets]) -> str:
+    """Markdown: one row per (car, track, seed) with the four changes and the targets missed."""
+    head = [
+        "car",
+        "track",
+        "seed",
+        "lat vs lmpc",
+        "head vs lmpc",
+        "lat max vs lmpc",
+        "cmd rate vs lmpc",
+        "missed",
+    ]
+    rows = []
+    for t in targets:
+        cells = [t.car, t.track, str(t.seed)]
+        cells += [
+            fmt(v, "+.0f") + ("%" if v is not None else "")
+            for v in (t.lateral_pct, t.heading_pct, t.lateral_max_pct, t.command_rate_pct)
+        ]
+        missed = t.missed()
+        cells.append("-" if not missed else ("not completed" if not t.both_completed else ", ".join(missed)))
+        rows.append(cells)
+    met = sum(1 for t in targets if not t.missed())
+    return markdown(head, rows) + f"\nAll four targets met on {met} of {len(targets)} runs.\n"

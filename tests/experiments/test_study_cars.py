@@ -1,0 +1,80 @@
+"""The cars study: configuration, jobs on zoo cars, targets, tables and the plot."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from rkmpc.analysis.statistics import stats
+from rkmpc.analysis.study_plots import plot_cars_study
+from rkmpc.core.errors import ParameterError
+from rkmpc.experiments.studies.cars import CarsStudyConfig, CarTargets, study_cars, targets_table
+from rkmpc.experiments.studies.tracks import TracksStudyConfig
+from rkmpc.sim.scenario import load_scenario
+from rkmpc.vehicle.plants.composed import ComposedPlant
+from rkmpc.vehicle.plants.dynamic import DynamicPlant
+
+
+def test_a_scenario_drives_its_zoo_car_and_records_it() -> None:
+    scenario = load_scenario("oval", car="gym")
+    assert isinstance(scenario.make_plant(), ComposedPlant)
+    assert scenario.vehicle.wheelbase == pytest.approx(0.307)  # the controllers keep the nominal car
+    assert scenario.describe()["car"]["name"] == "gym"
+    assert isinstance(load_scenario("oval").make_plant(), DynamicPlant)
+    with pytest.raises(ValueError, match="needs --vehicle f1tenth"):
+        load_scenario("oval", vehicle="fullsize", car="gym")
+
+
+def test_config_validates() -> None:
+    tracks = TracksStudyConfig(tracks=("oval",), controllers=("pp", "lmpc"))
+    assert CarsStudyConfig(cars="gym,overshoot", tracks=tracks).cars == ("gym", "overshoot")
+    with pytest.raises(ParameterError, match="unknown car"):
+        CarsStudyConfig(cars=("gym", "tank"), tracks=tracks)
+    with pytest.raises(ParameterError, match="1:10 cars"):
+        CarsStudyConfig(cars=("gym",), tracks=TracksStudyConfig(tracks=("oval",), vehicle="fullsize"))
+    with pytest.raises(ParameterError, match="not in the tracks' study_options"):
+        CarsStudyConfig(
+            cars=("gym",), tracks=TracksStudyConfig(tracks=("oval",), study_options={"car": "gym"})
+        )
+    job = CarsStudyConfig(cars=("gym",), tracks=tracks).job_config("gym", "oval", 0)
+    assert job.car == "gym" and job.controllers == ("pp", "lmpc")
+
+
+def test_targets_are_judged_against_their_limits() -> None:
+    good = CarTargets("gym", "oval", 0, -45.0, -35.0, -1.0, -5.0, True)
+    assert good.missed() == []
+    worse_max = CarTargets("gym", "oval", 0, -45.0, -35.0, 12.0, -5.0, True)
+    assert worse_max.missed() == ["lateral_max_pct"]
+    weak = CarTargets("gym", "oval", 0, -39.0, -10.0, 0.0, 0.0, True)
+    assert weak.missed() == ["lateral_pct", "heading_pct"]
+    off = CarTargets("gym", "oval", 0, None, None, None, None, False)
+    assert len(off.missed()) == 4
+    table = targets_table([good, worse_max, off])
+    assert "| gym | oval | 0 | -45% | -35% | -1% | -5% | - |" in table
+    assert "not completed" in table and "met on 1 of 3 runs" in table
+
+
+def test_plot_has_a_bar_per_controller_and_car() -> None:
+    lateral = {c: {"lmpc": stats([0.03, 0.04]), "rkmpc": stats([0.02])} for c in ("gym", "overshoot")}
+    done = {c: {"lmpc": 1.0, "rkmpc": 0.5} for c in ("gym", "overshoot")}
+    figure = plot_cars_study(["gym", "overshoot"], ["lmpc", "rkmpc"], lateral, done)
+    left, right = figure.axes
+    assert len(left.patches) == 4 and len(right.patches) == 4
+    assert [p.get_height() for p in right.patches] == [1.0, 1.0, 0.5, 0.5]
+
+
+@pytest.mark.slow
+def test_study_cars_drives_each_car() -> None:
+    tracks = TracksStudyConfig(tracks=("oval",), controllers=("pp", "lmpc"))
+    result = study_cars(CarsStudyConfig(cars=("gym", "light-short"), tracks=tracks), n_jobs=2)
+    data = result.to_json()
+    json.dumps(data, allow_nan=False)
+    assert [j["car"] for j in data["jobs"]] == ["gym", "light-short"]
+    assert all(j["ok"] for j in data["jobs"]), [j["error"] for j in data["jobs"]]
+    assert data["cars_described"]["gym"]["steering"]["type"] == "DelayedRateServo"
+    # The two cars differ, so the same controller tracks them differently.
+    lat = [j["controllers"]["lmpc"]["lateral_error_mean_m"] for j in data["jobs"]]
+    assert lat[0] != lat[1]
+    md = result.to_markdown()
+    assert "### gym: F1TENTH gym car" in md and "### light-short" in md
