@@ -374,7 +374,7 @@ def _cmd_study(args: argparse.Namespace) -> int:
         if args.study == "tracks":
             result = study_tracks(config, **where, progress=_study_progress(console), say=console.print)
         else:
-            cars_config = CarsStudyConfig(cars=_split(args.cars), tracks=config)
+            cars_config = CarsStudyConfig(cars=args.cars, tracks=config)
             result = study_cars(cars_config, **where, progress=_study_progress(console), say=console.print)
             save_figure(plot_cars_study(*result.plot_data()), args.out / "study_cars.png")
     else:

@@ -15,7 +15,14 @@ from rkmpc.control import make_controller
 from rkmpc.core.errors import ParameterError
 from rkmpc.core.observation import OBSERVATION_FIELDS, Observation
 from rkmpc.learning.data.augmentation import AugmentConfig, local_frame_windows
-from rkmpc.learning.features import KMPC_STATE, PAPER_STATE, RESIDUAL_STATE, FeatureMap
+from rkmpc.learning.features import (
+    HISTORY_FIELDS,
+    KMPC_STATE,
+    PAPER_STATE,
+    RESIDUAL_STATE,
+    FeatureMap,
+    previous_commands,
+)
 from rkmpc.learning.koopman.model import KoopmanModel
 from rkmpc.learning.pipeline import TrainConfig, train_model, training_arrays
 from rkmpc.learning.recipes import RECIPES, recipe_for, recipe_of_kind
@@ -55,6 +62,8 @@ def test_training_inputs_equal_the_controllers_inputs_bit_for_bit(builtin_scenar
         obs = Observation(*laps.obs[origin])
         recorder = _Recorder(model)
         controller = make_controller(recipe.controller, sc.reference, sc.vehicle, model=recorder)
+        if recipe.state.uses_history:  # the command the car held before this transition
+            controller.assume_previous(previous_commands(laps.command, laps.episode)[origin])
         controller.step(obs)
         assert recorder.seen, f"{recipe.controller} never lifted a state"
         fed = recorder.seen[-1]
@@ -113,3 +122,24 @@ def test_the_understeer_model_of_the_fit_is_the_one_lmpc_id_drives_with():
     yaw_rate = v * kappa
     excess = understeer_excess(steer, v, yaw_rate, wheelbase)
     np.testing.assert_allclose(excess, gradient * v * yaw_rate, rtol=1e-10, atol=1e-12)
+
+
+def test_history_features_read_the_previous_command():
+    fm = FeatureMap(("speed", *HISTORY_FIELDS))
+    assert fm.uses_history and not FeatureMap(("speed",)).uses_history
+    obs = np.arange(14.0).reshape(2, 7)
+    previous = np.array([[1.5, 0.1], [2.5, -0.2]])
+    np.testing.assert_array_equal(fm.of_array(obs, previous), [[3.0, 1.5, 0.1], [10.0, 2.5, -0.2]])
+    live = Observation(x=1.0, y=2.0, yaw=3.0, speed=4.0)
+    np.testing.assert_array_equal(fm.of_observation(live, np.array([3.0, 0.05])), [4.0, 3.0, 0.05])
+    with pytest.raises(ParameterError, match="need the previous command"):
+        fm.of_observation(live)
+    with pytest.raises(ParameterError, match="need the previous command"):
+        fm.of_array(obs)
+
+
+def test_previous_commands_shift_within_episodes_only():
+    command = np.array([[1.0, 0.1], [2.0, 0.2], [3.0, 0.3], [4.0, 0.4]])
+    episode = np.array([0, 0, 1, 1])
+    expected = [[1.0, 0.1], [1.0, 0.1], [3.0, 0.3], [3.0, 0.3]]
+    np.testing.assert_array_equal(previous_commands(command, episode), expected)

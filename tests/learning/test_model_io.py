@@ -220,8 +220,14 @@ def test_load_model_without_recorded_features(tmp_path, kind):
 
 
 def test_residual_recipe_sizes():
-    # The residual model of the brief: three state features (speed, yaw rate, wheel angle).
-    assert recipe_of_kind("residual").state.names == ("speed", "yaw_rate", "steer_angle")
+    # The residual model: speed, yaw rate, wheel angle and the command sent one step before.
+    assert recipe_of_kind("residual").state.names == (
+        "speed",
+        "yaw_rate",
+        "steer_angle",
+        "previous_speed_command",
+        "previous_steer_command",
+    )
     assert set(KOOPMAN_KINDS) == {"residual", "paper", "koopman"}
 
 

@@ -60,6 +60,13 @@ def load_model(path: str | Path, kind: str) -> IdentifiedModel | KoopmanModel:
         raise InputFileError(
             path, f"holds a {found!r} model, this controller needs a {kind!r} one", field="kind"
         )
+    if recipe.state is not None and model.nx_ != recipe.state.size:
+        raise InputFileError(
+            path,
+            f"the model takes {model.nx_} state features, the {kind!r} recipe feeds {recipe.state.size} "
+            f"({recipe.state.describe()}); retrain it with this version",
+            field="features",
+        )
     features = model.metadata_.get("features")
     if isinstance(features, list) and recipe.state is not None and tuple(features) != recipe.state.names:
         raise InputFileError(

@@ -24,7 +24,7 @@ from rkmpc.core.versions import RKMPC_VERSION
 from rkmpc.learning.data.augmentation import AugmentConfig, LocalWindows, local_frame_windows
 from rkmpc.learning.data.dataset import TransitionDataset
 from rkmpc.learning.data.residuals import control_residuals
-from rkmpc.learning.features import FeatureMap
+from rkmpc.learning.features import FeatureMap, previous_commands
 from rkmpc.learning.koopman.model import KoopmanModel
 from rkmpc.learning.recipes import model_kinds, recipe_of_kind
 
@@ -97,9 +97,15 @@ class TrainReport:
     multi_step_error: list[float]
 
 
-def _window_states(windows: LocalWindows, state: FeatureMap) -> np.ndarray:
-    """States ``x_0 .. x_Np`` of every window, shape (M, Np+1, nx)."""
-    return np.concatenate([state.of_array(windows.obs), state.of_array(windows.next_obs[:, -1:])], axis=1)
+def _window_states(windows: LocalWindows, state: FeatureMap, previous: np.ndarray) -> np.ndarray:
+    """States ``x_0 .. x_Np`` of every window, shape (M, Np+1, nx).
+
+    ``previous`` holds the command applied before each transition of the data set (N, 2); the
+    state after a window's last step follows that step's own command.
+    """
+    first = state.of_array(windows.obs, previous[windows.indices])
+    last = state.of_array(windows.next_obs[:, -1:], windows.command[:, -1:])
+    return np.concatenate([first, last], axis=1)
 
 
 def training_arrays(
@@ -116,7 +122,7 @@ def training_arrays(
     idx = windows.indices
     needs_labels = recipe.model_input == "control_residual" or recipe.output == "nominal_input"
     labels = control_residuals(data, wheelbase) if needs_labels else None
-    Xw = _window_states(windows, recipe.state)
+    Xw = _window_states(windows, recipe.state, previous_commands(data.command, data.episode))
     Uw = windows.command
     if recipe.model_input == "control_residual" and labels is not None:
         Uw = labels.delta[idx]

@@ -147,6 +147,14 @@ class _ResidualBase(Controller):
         self._guard.reset()
         self.last_correction = np.zeros(2)
 
+    def assume_previous(self, command: np.ndarray) -> None:
+        """Start as if ``command`` (``[speed, steer]``) had been sent at the step before the next one.
+
+        After :meth:`reset` the controller knows no previous command and assumes the car holds
+        what it measures; a car that starts while holding a known command can say so here.
+        """
+        self._guard.previous = np.array(command, dtype=float).reshape(2)
+
     def _step(self, observation: Observation) -> tuple[Command, str, str]:
         base = self.lmpc.step(observation)
         pred = self.lmpc.last_prediction
@@ -218,7 +226,10 @@ class ResidualKoopmanMPC(_ResidualBase):
     def _residual_qp(
         self, observation: Observation, pred: Prediction, plan: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
-        x = self.state.of_observation(observation)
+        previous = self._guard.previous
+        if previous is None:  # first step: as if the car had been held at what it does now
+            previous = np.array([observation.speed, observation.steer_angle])
+        x = self.state.of_observation(observation, previous)
         if not _all_finite(x):
             raise FloatingPointError("rkmpc needs measured speed, yaw rate and wheel angle")
         z0 = self.model.lift(x)
