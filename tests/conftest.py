@@ -29,3 +29,22 @@ def builtin_scenario():
     from rkmpc.sim.scenario import load_scenario
 
     return load_scenario("builtin")
+
+
+@pytest.fixture(scope="session")
+def small_paper_model(builtin_scenario):
+    """An ``rkmpc-paper`` model in seconds: one LMPC lap of the built-in track, no lifting network.
+
+    The literal reading's lifted linear model on the local pose (``z = [x, y, theta]``), fitted by
+    least squares only: small, but a real model of the data that drives the residual MPC.
+    """
+    from rkmpc.learning.data.augmentation import AugmentConfig
+    from rkmpc.learning.koopman.model import KoopmanModel
+    from rkmpc.learning.pipeline import TrainConfig, train_model
+    from rkmpc.sim.collect import collect
+
+    sc = builtin_scenario
+    data = collect(sc, laps=1)
+    config = TrainConfig(kind="paper", augment=AugmentConfig(ratio=0.2), model=KoopmanModel(None))
+    model, _ = train_model(data, sc.vehicle.wheelbase, config)
+    return model

@@ -43,7 +43,7 @@ def test_qp_gradient_matches_cost():
     u_ref = np.column_stack([v, delta])
     u_prev = np.array([1.5, 0.05])
     xi0 = np.array([0.1, -0.2, 0.05])
-    H, f, *_ = prob.qp_numbers(xi0, u_ref, u_prev, Phi, Gamma)
+    H, f, *_ = prob.qp_numbers(xi0, u_ref, u_prev, Phi, Gamma, (0.5 * v, v))
 
     def cost(U):
         X = (Phi @ xi0 + Gamma @ U).reshape(-1, 3)
@@ -106,16 +106,19 @@ def test_qp_numbers_equal_the_textbook_formulas():
     u_ref = np.column_stack([v, delta])
     u_prev = np.array([1.5, 0.05])
     xi0 = np.array([0.1, -0.2, 0.05])
-    H, f, lb, ub, lbA, ubA = prob.qp_numbers(xi0, u_ref, u_prev, Phi, Gamma)
+    lower, upper = 0.5 * v, np.minimum(v + cfg.speed_margin, veh.drive.max_speed)
+    H, f, lb, ub, lbA, ubA = prob.qp_numbers(xi0, u_ref, u_prev, Phi, Gamma, (lower, upper))
     Q = np.diag(prob.q_diag)
     D = prob.D
     W = np.diag(prob.w_rate)
     d = (u_ref - np.vstack([u_prev, u_ref[:-1]])).ravel()
     np.testing.assert_allclose(H, 2 * (Gamma.T @ Q @ Gamma + np.diag(prob.r_diag) + D.T @ W @ D), rtol=1e-12)
     np.testing.assert_allclose(f, 2 * (Gamma.T @ Q @ Phi @ xi0 + D.T @ W @ d), rtol=1e-12, atol=1e-14)
+    # The speeds between the given bounds, the steering within the car's; as deviations from u_ref.
     ub_plain = np.tile(prob.u_max, 10) - u_ref.ravel()
-    ub_plain[0::2] = np.minimum(ub_plain[0::2], cfg.speed_margin)
-    lb_plain = np.minimum(np.tile(prob.u_min, 10) - u_ref.ravel(), ub_plain)
+    ub_plain[0::2] = upper - v
+    lb_plain = np.tile(prob.u_min, 10) - u_ref.ravel()
+    lb_plain[0::2] = lower - v
     np.testing.assert_array_equal(ub, ub_plain)
     np.testing.assert_array_equal(lb, lb_plain)
     np.testing.assert_array_equal(lbA, -prob.steer_step_max - d[1::2])

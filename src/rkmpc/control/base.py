@@ -43,6 +43,8 @@ class Controller(ABC):
 
     #: Registry name of the controller (``"lmpc"``, ``"pp"``, ...).
     name: str = "controller"
+    #: Control period the controller plans with (s); None for one that plans with none.
+    dt: float | None = None
 
     def __init__(self) -> None:
         self.info = StepInfo()

@@ -10,7 +10,8 @@ tracking cost of the paper's MPC1,
     + w_v (v_k - v_{k-1})^2 + w_\\delta (\\delta_k - \\delta_{k-1})^2,
 
 with the last state weighted ``terminal_factor`` times and the speed bounded
-by the profile plus ``speed_margin``. The configurations of the linear, the
+by the profile plus ``speed_margin`` from above and by the
+:class:`~rkmpc.control.guard.SpeedFloor` of the profile from below. The configurations of the linear, the
 Koopman and the nonlinear MPCs inherit it (do-mpc style: settings shared by
 inheritance), so they differ only in their model and solver settings.
 
@@ -25,14 +26,15 @@ and hand the plan, or the fall-back when the solve failed, to the
 
 from __future__ import annotations
 
+import math
 from abc import abstractmethod
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from rkmpc.control.base import Controller
-from rkmpc.control.guard import CommandGuard
+from rkmpc.control.guard import CommandGuard, SpeedFloor
 from rkmpc.core.errors import ParameterError
 from rkmpc.core.observation import Command, Observation
 from rkmpc.core.validation import is_integer, require_nonnegative, require_positive
@@ -82,6 +84,11 @@ class TrackingCost:
         Largest speed above the reference speed profile the MPC may command
         (m/s). Without it the kinematic model, in which yaw rate grows with
         speed, accelerates into corners whenever the steering saturates.
+    speed_floor : SpeedFloor
+        Lowest speed the MPC plans and commands, relative to the reference speed
+        (default: half of it, see :class:`~rkmpc.control.guard.SpeedFloor`). Every MPC,
+        and the residual MPCs built on the LMPC, keep their commands at or above it,
+        learned corrections included.
     """
 
     horizon: int = 30
@@ -94,9 +101,12 @@ class TrackingCost:
     steer_rate_weight: float = 0.1
     terminal_factor: float = 1.0
     speed_margin: float = 0.0
+    speed_floor: SpeedFloor = field(default_factory=SpeedFloor)
 
     def __post_init__(self) -> None:
         name = type(self).__name__
+        if not isinstance(self.speed_floor, SpeedFloor):
+            raise ParameterError(f"{name}.speed_floor must be a SpeedFloor, got {self.speed_floor!r}")
         if not is_integer(self.horizon, 2):
             raise ParameterError(f"{name}.horizon must be an integer >= 2, got {self.horizon!r}")
         require_positive(self, "dt")
@@ -149,11 +159,15 @@ class TrackingController(Controller):
         self.reference = reference
         self.vehicle = vehicle
         self.config = config
-        self._guard = CommandGuard(vehicle, config.dt, config.horizon)
+        self.dt = config.dt
+        self._guard = CommandGuard(vehicle, config.dt, config.horizon, config.speed_floor)
         self._s_hint: float | None = None
+        #: Reference speed at the car's projection at the last step (m/s).
+        self.reference_speed = math.nan
 
     def _reset(self) -> None:
         self._s_hint = None
+        self.reference_speed = math.nan
         self._guard.reset()
         self._reset_solver()
 
@@ -179,9 +193,22 @@ class TrackingController(Controller):
         self._s_hint = proj.s
         ref = self.reference.horizon(proj.s, cfg.horizon, cfg.dt)
         u_ref = self._reference_inputs(ref)
+        self.reference_speed = float(u_ref[0, 0])
         if self._guard.previous is None:
             self._guard.previous = self._first_previous_input(observation, u_ref)
         return ref, u_ref
+
+    def _speed_bounds(self, u_ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Lowest and highest speeds (m/s) to plan over the horizon, each shape (N,).
+
+        From above the car's limit and the reference plus ``speed_margin``; from below the
+        car's limit and the :class:`~rkmpc.control.guard.SpeedFloor` of the reference, never
+        above the upper bound.
+        """
+        v_ref = u_ref[:, 0]
+        upper = np.minimum(self._guard.u_max[0], v_ref + self.config.speed_margin)
+        lower = np.minimum(self._guard.speed_floor(v_ref), upper)
+        return lower, upper
 
     @property
     def previous_command(self) -> np.ndarray:
@@ -205,5 +232,5 @@ class TrackingController(Controller):
         else:
             u = guard.fallback(u_ref[0])
             status, message = "fallback", solution.message
-        u = guard.apply(u)
+        u = guard.apply(u, self.reference_speed)
         return Command(speed=float(u[0]), steer=float(u[1])), status, message

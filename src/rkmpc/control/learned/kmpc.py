@@ -96,8 +96,7 @@ class KoopmanMPC(TrackingController):
         f[:2] -= self._w2_first * previous
         lb = p.U_min.copy()
         ub = p.U_max.copy()
-        np.minimum(ub[0::2], u_flat[0::2] + cfg.speed_margin, out=ub[0::2])
-        np.minimum(lb, ub, out=lb)
+        lb[0::2], ub[0::2] = self._speed_bounds(u_ref)
         lbA = np.full(n, -p.steer_step_max)
         ubA = np.full(n, p.steer_step_max)
         lbA[0] += previous[1]

@@ -4,7 +4,10 @@ Both controllers here keep the paper's structure: the LMPC of
 :mod:`rkmpc.control.linear.lmpc` computes the baseline ``U_lmpc`` on the kinematic
 model; a second, residual MPC on a learned lifted linear (Koopman) model
 computes the correction ``dU``; the car receives ``U_lmpc + dU`` clipped to its
-limits. They differ in what the learned model describes (see ``docs/method.md``).
+limits and to the LMPC's speed floor (:class:`rkmpc.control.guard.SpeedFloor`: half the
+reference speed by default), which bounds the residual QP too, so that a speed correction
+never stops the car where the reference moves. They differ in what the learned model
+describes (see ``docs/method.md``).
 
 ``rkmpc`` (default): the residual sits in the kinematic model's input channel.
 The lifted model, on features of the measured speed, wheel angle and yaw rate,
@@ -119,6 +122,7 @@ class _ResidualBase(Controller):
         self.config = config if config is not None else self.default_config
         self.state: FeatureMap = recipe_state(self.name)
         self.lmpc = LinearMPC(reference, vehicle, lmpc_config)
+        self.dt = self.lmpc.config.dt
         n = self.lmpc.config.horizon
         self.horizon = n
         self._qp = make_qp(
@@ -126,7 +130,8 @@ class _ResidualBase(Controller):
         )
         self._d_max = np.tile([self.config.max_speed_correction, self.config.max_steer_correction], n)
         self._neg_d_max = -self._d_max
-        self._guard = CommandGuard(vehicle, self.lmpc.config.dt, n)
+        # The LMPC's speed floor bounds the corrected command too (its settings are the baseline's).
+        self._guard = CommandGuard(vehicle, self.lmpc.config.dt, n, self.lmpc.config.speed_floor)
         self._u_min = np.tile(self._guard.u_min, n)
         self._u_max = np.tile(self._guard.u_max, n)
         w = [self.config.position_weight, self.config.position_weight, self.config.heading_weight]
@@ -170,6 +175,8 @@ class _ResidualBase(Controller):
         except FloatingPointError as exc:  # non-finite features: keep the baseline
             return self._apply(np.array([base.speed, base.steer]), np.zeros(2)), "fallback", str(exc)
         lb = self._u_min - plan
+        # The corrected speeds stay at or above the floor: the QP plans with it.
+        np.subtract(self._guard.speed_floor(pred.u_ref[:, 0]), pred.plan[:, 0], out=lb[0::2])
         np.maximum(lb, self._neg_d_max, out=lb)
         ub = self._u_max - plan
         np.minimum(ub, self._d_max, out=ub)
@@ -187,7 +194,8 @@ class _ResidualBase(Controller):
         return self._apply(plan[:2], result.x[:2]), "ok", ""
 
     def _apply(self, base: np.ndarray, correction: np.ndarray) -> Command:
-        u = self._guard.apply(base + correction)
+        """Guard ``base + correction`` at the LMPC's reference speed of this step (its floor)."""
+        u = self._guard.apply(base + correction, self.lmpc.reference_speed)
         self.last_correction = u - base
         return Command(speed=float(u[0]), steer=float(u[1]))
 

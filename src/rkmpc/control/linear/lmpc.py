@@ -101,7 +101,9 @@ class LinearMPC(TrackingController):
         n = self.config.horizon
         xi0, Phi, Gamma = self._prediction(observation, ref, u_ref)
         problem = self.problem
-        H, f, lb, ub, lbA, ubA = problem.qp_numbers(xi0, u_ref, self.previous_command, Phi, Gamma)
+        H, f, lb, ub, lbA, ubA = problem.qp_numbers(
+            xi0, u_ref, self.previous_command, Phi, Gamma, self._speed_bounds(u_ref)
+        )
         if not self._qp.is_setup:
             self._qp.setup(H, f, lb, ub, problem.A_rate, lbA, ubA)
         else:

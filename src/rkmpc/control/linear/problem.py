@@ -184,6 +184,7 @@ class KinematicMPCProblem:
         u_prev: np.ndarray,
         Phi: np.ndarray,
         Gamma: np.ndarray,
+        speed_bounds: tuple[np.ndarray, np.ndarray],
     ) -> tuple[np.ndarray, ...]:
         """Hessian, gradient and bounds of the condensed QP.
 
@@ -197,6 +198,10 @@ class KinematicMPCProblem:
             Previously applied input, shape (2,).
         Phi, Gamma : numpy.ndarray
             From :meth:`prediction_matrices`.
+        speed_bounds : tuple of numpy.ndarray
+            Lowest and highest speed (m/s) at each step, shape (N,) each
+            (:meth:`rkmpc.control.tracking.TrackingController._speed_bounds`: the car's
+            limits, the reference plus the margin, the speed floor).
 
         Returns
         -------
@@ -220,9 +225,10 @@ class KinematicMPCProblem:
         f += rate
         lb = self.U_min - u_flat
         ub = self.U_max - u_flat
-        # The speed may not exceed the profile (which respects the grip limit) by more than a margin.
-        np.minimum(ub[0::2], self.config.speed_margin, out=ub[0::2])
-        np.minimum(lb[0::2], ub[0::2], out=lb[0::2])
+        # The speed stays between the floor and the profile (which respects the grip limit) plus a margin.
+        lower, upper = speed_bounds
+        np.subtract(lower, u_flat[0::2], out=lb[0::2])
+        np.subtract(upper, u_flat[0::2], out=ub[0::2])
         d_steer = d[1::2]
         lbA = -self.steer_step_max - d_steer
         ubA = self.steer_step_max - d_steer

@@ -326,8 +326,7 @@ class AcadosKinematicNMPC(KinematicNMPC):
         yref[:, 2] = ref.theta[:n]
         yref[:, 3:5] = u_ref
         self._yref_e[:] = (ref.x[n] - origin[0], ref.y[n] - origin[1], ref.theta[n])
-        self._ubu[:, 0] = np.minimum(self.u_max[0], u_ref[:, 0] + cfg.speed_margin)
-        self._lbu[:, 0] = np.minimum(self.u_min[0], self._ubu[:, 0])
+        self._lbu[:, 0], self._ubu[:, 0] = self._speed_bounds(u_ref)
         x_guess, u_guess = self._initial_guess_rti(x0, origin, ref, u_ref)
 
         solver = self._solver

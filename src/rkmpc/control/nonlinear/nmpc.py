@@ -147,8 +147,7 @@ class KinematicNMPC(TrackingController):
         ubx = np.full(self._n_w, np.inf)
         u_lb = np.tile(self.u_min, (n, 1))
         u_ub = np.tile(self.u_max, (n, 1))
-        u_ub[:, 0] = np.minimum(u_ub[:, 0], u_ref[:, 0] + cfg.speed_margin)
-        u_lb[:, 0] = np.minimum(u_lb[:, 0], u_ub[:, 0])
+        u_lb[:, 0], u_ub[:, 0] = self._speed_bounds(u_ref)
         lbx[self._n_xvars :] = u_lb.ravel()
         ubx[self._n_xvars :] = u_ub.ravel()
 
