@@ -284,3 +284,23 @@ def test_study_data_writes_json_plot_and_markdown(tmp_path):
     assert result["jobs"][0]["controller"] == "rkmpc"
     assert result["baseline"]["controller"] == "lmpc" and result["baseline"]["metrics"]["completed"]
     assert (out / "study_data.png").stat().st_size > 10_000
+
+
+@pytest.mark.slow
+def test_study_cars_writes_json_plot_and_markdown(tmp_path):
+    out = tmp_path / "sc"
+    args = ["study", "cars", "--cars", "gym,random-4", "--tracks", "oval", "--controllers", "pp,lmpc"]
+    assert main([*args, "--jobs", "2", "--out", str(out)]) == 0
+    result = json.loads((out / "study_cars.json").read_text())
+    assert result["cars"] == ["gym", "random-4"]
+    assert result["summary"]["gym"]["lmpc"]["completed"] == 1
+    assert "### random-4: random draw" in (out / "study_cars.md").read_text()
+    assert (out / "study_cars.png").stat().st_size > 10_000
+
+
+def test_compare_on_a_zoo_car_records_it(tmp_path):
+    out = tmp_path / "cmp"
+    assert main(["compare", "--controllers", "pp", "--car", "light-short", "--out", str(out)]) == 0
+    result = json.loads((out / "results.json").read_text())
+    assert result["config"]["scenario"]["car"]["name"] == "light-short"
+    assert main(["compare", "--controllers", "pp", "--car", "tank", "--out", str(out)]) == 2

@@ -80,6 +80,10 @@ class Controller(ABC):
         self.info = StepInfo(status=status, solve_time_s=elapsed, message=message)
         return command
 
+    def diagnostics(self) -> dict[str, float]:
+        """Counts and figures of the run so far beyond the fall-backs (none by default)."""
+        return {}
+
     @abstractmethod
     def _reset(self) -> None:
         """Reset subclass state."""

@@ -77,6 +77,8 @@ class SimResult:
         Steps on which the controller fell back.
     lap_length : float
         Length of one lap of the reference path (m).
+    diagnostics : dict of str to float
+        The controller's own counts at the end (:meth:`rkmpc.control.base.Controller.diagnostics`).
     """
 
     log: StepLog
@@ -85,6 +87,7 @@ class SimResult:
     lap_length: float
     lap_times: list[float] = field(default_factory=list)
     fallback_count: int = 0
+    diagnostics: dict[str, float] = field(default_factory=dict)
 
     @property
     def completed(self) -> bool:
@@ -193,6 +196,8 @@ def simulate(
     lap_times = list(np.diff([0.0, *laps.crossings]).astype(float)) if laps.crossings else []
     log.metadata["outcome"] = outcome
     log.metadata["lap_times"] = lap_times
+    diagnostics = controller.diagnostics()
+    log.metadata["diagnostics"] = diagnostics
     return SimResult(
         log=log,
         outcome=outcome,
@@ -200,6 +205,7 @@ def simulate(
         lap_length=length,
         lap_times=lap_times,
         fallback_count=controller.fallback_count,
+        diagnostics=diagnostics,
     )
 
 

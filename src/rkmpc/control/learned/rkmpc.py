@@ -30,24 +30,27 @@ changes.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from rkmpc.control.base import Controller
 from rkmpc.control.guard import CommandGuard
+from rkmpc.control.learned.adaptation import AdaptationConfig, OutputRLS
 from rkmpc.control.learned.lifted import (
     LiftedModel,
     lifted_prediction,
     recipe_state,
     reference_in_local_frame,
 )
+from rkmpc.control.learned.trust import CorrectionTrust, TrustConfig
 from rkmpc.control.linear.lmpc import LinearMPC, LMPCConfig, Prediction
 from rkmpc.control.qp import make_qp
 from rkmpc.core.errors import ParameterError
 from rkmpc.core.observation import Command, Observation
 from rkmpc.core.validation import require_nonnegative
+from rkmpc.learning.data.residuals import kinematic_inverse
 from rkmpc.learning.features import FeatureMap
 from rkmpc.vehicle.params import VehicleParams
 
@@ -80,6 +83,17 @@ class ResidualMPCConfig:
         QP backend.
     max_iterations : int
         QP iteration budget; on failure the LMPC's command is applied alone.
+    steer_rate_weight : float
+        Weight of the squared change of the steering correction from one step to the next
+        (the first against the correction applied last), so the correction does not make the
+        commanded wheel angle move faster than the LMPC's; 0 for none.
+    trust : TrustConfig
+        Out-of-distribution guard: how the correction fades toward the LMPC's command when the
+        state leaves the model's training range or its predictions go wrong
+        (:mod:`rkmpc.control.learned.trust`; used by ``rkmpc``, whose model predicts its features).
+    adaptation : AdaptationConfig
+        Online recursive least squares on the output map of the ``rkmpc`` model
+        (:mod:`rkmpc.control.learned.adaptation`); off by default.
     """
 
     position_weight: float = 1.0
@@ -90,9 +104,14 @@ class ResidualMPCConfig:
     max_steer_correction: float = 0.15
     solver: str = "daqp"
     max_iterations: int = 200
+    steer_rate_weight: float = 0.0
+    trust: TrustConfig = field(default_factory=lambda: TrustConfig(enabled=False))
+    adaptation: AdaptationConfig = field(default_factory=AdaptationConfig)
 
     def __post_init__(self) -> None:
-        require_nonnegative(self, "position_weight", "heading_weight", "speed_weight", "steer_weight")
+        require_nonnegative(
+            self, "position_weight", "heading_weight", "speed_weight", "steer_weight", "steer_rate_weight"
+        )
         if self.speed_weight <= 0 or self.steer_weight <= 0:
             raise ParameterError("ResidualMPCConfig: speed_weight and steer_weight must be > 0")
         if not (self.max_speed_correction > 0 and self.max_steer_correction > 0):
@@ -137,7 +156,13 @@ class _ResidualBase(Controller):
         w = [self.config.position_weight, self.config.position_weight, self.config.heading_weight]
         self._q = np.tile(w, n)
         self._r = np.tile([self.config.speed_weight, self.config.steer_weight], n)
-        self._R = np.diag(self._r)
+        # Correction weights, plus the steering correction's step-to-step changes.
+        difference = np.zeros((n, 2 * n))
+        difference[np.arange(n), 2 * np.arange(n) + 1] = 1.0
+        difference[np.arange(1, n), 2 * np.arange(n - 1) + 1] = -1.0
+        self._R = np.diag(self._r) + self.config.steer_rate_weight * difference.T @ difference
+        #: Trust (0-1) given to the last correction (:mod:`rkmpc.control.learned.trust`).
+        self.trust: CorrectionTrust | None = None
         #: Last correction applied (first step), shape (2,).
         self.last_correction = np.zeros(2)
         # The Hessian the residual QP holds (a fixed one need not be passed again).
@@ -151,6 +176,19 @@ class _ResidualBase(Controller):
         self.lmpc.reset()
         self._guard.reset()
         self.last_correction = np.zeros(2)
+        if self.trust is not None:
+            self.trust.reset()
+
+    def diagnostics(self) -> dict[str, float]:
+        """Steps on which the correction was faded, by cause, and the mean trust (for the run's record)."""
+        if self.trust is None:
+            return {}
+        return {
+            "trust_steps": float(self.trust.steps),
+            "trust_faded_range": float(self.trust.faded["range"]),
+            "trust_faded_error": float(self.trust.faded["error"]),
+            "trust_mean": self.trust.mean,
+        }
 
     def assume_previous(self, command: np.ndarray) -> None:
         """Start as if ``command`` (``[speed, steer]``) had been sent at the step before the next one.
@@ -187,17 +225,25 @@ class _ResidualBase(Controller):
             self._qp.setup(H, f, lb, ub, np.zeros((0, plan.size)), np.zeros(0), np.zeros(0))
         else:
             self._qp.update(H=None if H is self._qp_hessian else H, f=f, lb=lb, ub=ub)
+        if self.config.steer_rate_weight > 0.0:
+            f = f.copy()
+            f[1] -= 2.0 * self.config.steer_rate_weight * self.last_correction[1]
         self._qp_hessian = H
         result = self._qp.solve()
         if not result.solved or not _all_finite(result.x):
             return self._apply(plan[:2], np.zeros(2)), "fallback", f"residual QP failed: {result.status}"
-        return self._apply(plan[:2], result.x[:2]), "ok", ""
+        weight = 1.0 if self.trust is None else self.trust.trust
+        return self._apply(plan[:2], weight * result.x[:2]), "ok", ""
 
     def _apply(self, base: np.ndarray, correction: np.ndarray) -> Command:
         """Guard ``base + correction`` at the LMPC's reference speed of this step (its floor)."""
         u = self._guard.apply(base + correction, self.lmpc.reference_speed)
         self.last_correction = u - base
+        self._applied(u)
         return Command(speed=float(u[0]), steer=float(u[1]))
+
+    def _applied(self, u: np.ndarray) -> None:
+        """Hook: the command ``u`` (shape (2,)) was sent."""
 
     def _residual_qp(
         self, observation: Observation, pred: Prediction, plan: np.ndarray
@@ -230,6 +276,50 @@ class ResidualKoopmanMPC(_ResidualBase):
         # Time invariant: U_p over the horizon = Mz z0 + Mu U, computed once.
         m = self.model
         self._Mz, self._Mu = lifted_prediction(m.A_, m.B_, m.C_, m.D_, self.horizon, first=0)
+        self._z0: np.ndarray | None = None
+        # A model that knows its training range and feature map (a KoopmanModel) gets a trust guard.
+        x_min, x_max, cx = (getattr(m, name, None) for name in ("x_min_", "x_max_", "Cx_"))
+        if x_min is not None and x_max is not None and cx is not None:
+            self.trust = CorrectionTrust(m.A_, m.B_, cx, x_min, x_max, self.config.trust)
+        self._rls = OutputRLS(m.C_, m.D_, self.config.adaptation) if self.config.adaptation.enabled else None
+        # The last step's lifted state, command and pose (for adaptation).
+        self._last: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        self._pose = np.zeros(3)
+
+    def _reset(self) -> None:
+        super()._reset()
+        self._last = None
+        if self._rls is not None:
+            self._rls.reset()
+            self._refresh_prediction()
+
+    def diagnostics(self) -> dict[str, float]:
+        out = super().diagnostics()
+        if self._rls is not None:
+            out.update(rls_updates=float(self._rls.updates), rls_skipped=float(self._rls.skipped))
+        return out
+
+    def _refresh_prediction(self) -> None:
+        if self._rls is None:
+            return
+        m = self.model
+        self._Mz, self._Mu = lifted_prediction(m.A_, m.B_, self._rls.C, self._rls.D, self.horizon, first=0)
+
+    def _adapt(self, pose: np.ndarray) -> None:
+        """Learn the output map from the step just driven: its ``U_p`` from the two poses."""
+        if self._rls is None or self._last is None:
+            return
+        z, u, last_pose = self._last
+        dt = self.lmpc.config.dt
+        y = kinematic_inverse(last_pose[None, :], pose[None, :], self.vehicle.wheelbase, dt)[0]
+        if self._rls.update(z, u, y):
+            self._refresh_prediction()
+
+    def _applied(self, u: np.ndarray) -> None:
+        if self.trust is not None and self._z0 is not None:
+            self.trust.expect(self._z0, u)
+        self._last = None if self._z0 is None else (self._z0, np.array(u, dtype=float), self._pose.copy())
+        self._z0 = None
 
     def _residual_qp(
         self, observation: Observation, pred: Prediction, plan: np.ndarray
@@ -241,6 +331,11 @@ class ResidualKoopmanMPC(_ResidualBase):
         if not _all_finite(x):
             raise FloatingPointError("rkmpc needs measured speed, yaw rate and wheel angle")
         z0 = self.model.lift(x)
+        self._pose = np.array([observation.x, observation.y, observation.yaw])
+        self._adapt(self._pose)
+        if self.trust is not None:
+            self.trust.judge(x)
+        self._z0 = np.asarray(z0, dtype=float)
         # Kinematic deviations when the car's effective input is U_p(U_lmpc + dU).
         e0 = pred.Phi @ pred.xi0 + pred.Gamma @ (self._Mz @ z0 + self._Mu @ plan - pred.u_ref.ravel())
         GM = pred.Gamma @ self._Mu
@@ -284,7 +379,7 @@ class PaperResidualKoopmanMPC(_ResidualBase):
         self._free = self._Mz @ np.asarray(m.lift(origin), dtype=float)
         # Fixed Hessian: the model is time invariant and starts at the local origin.
         self._MtQ = self._Mu.T * self._q
-        self._H = 2.0 * (self._MtQ @ self._Mu + np.diag(self._r))
+        self._H = 2.0 * (self._MtQ @ self._Mu + self._R)
 
     def _residual_qp(
         self, observation: Observation, pred: Prediction, plan: np.ndarray

@@ -114,6 +114,12 @@ class CorrectionTrust:
         self.steps = 0
         self.faded = {"range": 0, "error": 0}
         self.trust = 1.0
+        self._trust_sum = 0.0
+
+    @property
+    def mean(self) -> float:
+        """Mean trust over the steps judged since :meth:`reset` (1 before any)."""
+        return self._trust_sum / self.steps if self.steps else 1.0
 
     def judge(self, x: np.ndarray) -> float:
         """Trust (0-1) of this step's correction, for the features ``x`` (shape (nx,)) seen now."""
@@ -130,6 +136,7 @@ class CorrectionTrust:
         if w_error < 1.0:
             self.faded["error"] += 1
         self.trust = min(w_range, w_error) if cfg.enabled else 1.0
+        self._trust_sum += self.trust
         return self.trust
 
     def expect(self, z: np.ndarray, u: np.ndarray) -> None:
