@@ -156,6 +156,18 @@ def test_c_a_bang_bang_rate_limited_wheel_behind_a_delay_gives_its_rate(cmd):
     assert model.servo_fit_r2 >= SERVO_MIN_R2
 
 
+def test_c_smooth_commands_never_give_a_rate_limit_below_what_the_wheel_shows(cmd):
+    """Commands too smooth to saturate the wheel: its chatter must not pass for a slow rate limit."""
+    smooth = np.convolve(cmd, np.ones(16) / 16, mode="same")
+    data = dataset(smooth, wheel_angles(smooth, bang_bang(3.2, 10), delay=0.02))
+    model = identify(data, VEHICLE)
+    fastest = float(np.max(np.abs(data.next_obs[:, 6] - data.obs[:, 6]))) / T
+    assert fastest > 1.0
+    assert model.servo_rate_limit is None or model.servo_rate_limit >= fastest
+    assert model.servo_fit_r2 >= SERVO_MIN_R2
+    assert model.warnings == ()
+
+
 def test_d_a_second_order_servo_gets_a_lag_and_delay_approximation(cmd):
     model = identify(dataset(cmd, wheel_angles(cmd, second_order(25.0, 0.5))), VEHICLE)
     assert model.servo_structure in ("lag", "delay-lag")

@@ -35,7 +35,7 @@ import numpy as np
 
 from rkmpc.core.errors import IdentificationWarning, ParameterError
 from rkmpc.core.observation import OBSERVATION_FIELDS
-from rkmpc.core.validation import is_integer
+from rkmpc.core.validation import is_integer, is_positive_number
 from rkmpc.learning.servo_fit import (
     SERVO_MIN_R2,
     SERVO_STRUCTURES,
@@ -111,7 +111,8 @@ class IdentifiedModel:
         changes, whether it was kept or replaced by the nominal lag) and of the
         understeer gradient kept; NaN (None in JSON) when the data allowed no fit.
     n_samples : int
-        Transitions with a measured wheel angle.
+        Transitions the servo was fitted on: a finite wheel angle before and after, and
+        the commands known back to the longest delay.
     servo_structure : str
         One of :data:`SERVO_STRUCTURE_NAMES`: the structure chosen, or ``nominal`` when
         the car's nominal lag was kept.
@@ -138,10 +139,10 @@ class IdentifiedModel:
             return isinstance(value, numbers.Real) and not isinstance(value, bool)
 
         name = "IdentifiedModel"
-        if not (number(self.servo_time_constant) and math.isfinite(self.servo_time_constant)):
-            raise ParameterError(f"{name}.servo_time_constant must be > 0, got {self.servo_time_constant!r}")
-        if self.servo_time_constant <= 0:
-            raise ParameterError(f"{name}.servo_time_constant must be > 0, got {self.servo_time_constant!r}")
+        if not is_positive_number(self.servo_time_constant):
+            raise ParameterError(
+                f"{name}.servo_time_constant must be finite and > 0, got {self.servo_time_constant!r}"
+            )
         if not (number(self.understeer_gradient) and math.isfinite(self.understeer_gradient)):
             raise ParameterError(
                 f"{name}.understeer_gradient must be finite, got {self.understeer_gradient!r}"
@@ -161,9 +162,9 @@ class IdentifiedModel:
         if not (number(self.servo_delay) and math.isfinite(self.servo_delay) and self.servo_delay >= 0):
             raise ParameterError(f"{name}.servo_delay must be finite and >= 0, got {self.servo_delay!r}")
         rate = self.servo_rate_limit
-        if rate is not None and not (number(rate) and math.isfinite(rate) and rate > 0):
+        if rate is not None and not is_positive_number(rate):
             raise ParameterError(f"{name}.servo_rate_limit must be None or finite and > 0, got {rate!r}")
-        if isinstance(self.warnings, str) or not all(isinstance(w, str) for w in self.warnings):
+        if not isinstance(self.warnings, (tuple, list)) or not all(isinstance(w, str) for w in self.warnings):
             raise ParameterError(f"{name}.warnings must be a sequence of strings, got {self.warnings!r}")
         object.__setattr__(self, "warnings", tuple(self.warnings))
 

@@ -18,8 +18,9 @@ The fit minimises the one-step prediction error of the measured wheel angle,
 ``delta_{k+1} - servo_step(delta_k, u_k, u_{k-1}, ...)``: a coarse grid over
 every fitted parameter (the delay makes the error multi-modal), then
 Nelder-Mead from the best grid point, inside the plausible ranges of
-:data:`SERVO_PARAMETERS`. A structure is chosen by the Bayesian information
-criterion, ``BIC = n ln(max(RSS / n, NOISE_FLOOR^2)) + p ln n``, among the
+:data:`SERVO_PARAMETERS`; a rate limit no lower than the largest wheel rate the
+data show (a wheel is never slower than it was seen to move). A structure is
+chosen by the Bayesian information criterion, ``BIC = n ln(max(RSS / n, NOISE_FLOOR^2)) + p ln n``, among the
 structures whose parameters stay off their implausible bounds; the floor
 makes fits better than any sensor could tell apart count as ties, which the
 simpler structure wins. Without a rate limit the model is linear and
@@ -31,7 +32,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.optimize import minimize
@@ -276,16 +277,24 @@ def lag_delay_weights(time_constant: float, delay: float, dt: float) -> tuple[fl
 
 
 class _Problem:
-    """One-step prediction error of the data for parameter sets in unit coordinates."""
+    """One-step prediction error of the data for parameter sets in unit coordinates.
+
+    The wheel cannot be slower than the data show: the rate limit is searched from the
+    largest wheel rate observed, ``max |delta_{k+1} - delta_k| / T``, up.
+    """
 
     def __init__(self, delta: np.ndarray, delta_next: np.ndarray, commands: np.ndarray, dt: float) -> None:
         self.delta, self.delta_next, self.commands, self.dt = delta, delta_next, commands, dt
+        rate = SERVO_PARAMETERS["rate_limit"]
+        observed = float(np.max(np.abs(delta_next - delta))) / dt
+        lower = min(max(rate.lower, observed), rate.upper)
+        self.parameters = {**SERVO_PARAMETERS, "rate_limit": replace(rate, lower=lower)}
 
     def values(self, structure: ServoStructure, z: np.ndarray) -> dict[str, np.ndarray]:
         """Every parameter, shape (G,), at unit coordinates ``z`` (G, fitted) of ``structure``."""
-        out = {name: np.full(len(z), p.neutral) for name, p in SERVO_PARAMETERS.items()}
+        out = {name: np.full(len(z), p.neutral) for name, p in self.parameters.items()}
         for i, name in enumerate(structure.fitted):
-            out[name] = SERVO_PARAMETERS[name].value(z[:, i])
+            out[name] = self.parameters[name].value(z[:, i])
         return out
 
     def rss(self, structure: ServoStructure, z: np.ndarray, chunk: int = 256) -> np.ndarray:
@@ -302,7 +311,7 @@ class _Problem:
 
 def _fit_one(problem: _Problem, structure: ServoStructure, ss_total: float) -> tuple[np.ndarray, float]:
     """Unit coordinates and RSS of the best fit of ``structure``: coarse grid, then Nelder-Mead."""
-    params = [SERVO_PARAMETERS[name] for name in structure.fitted]
+    params = [problem.parameters[name] for name in structure.fitted]
     grid = np.array(list(itertools.product(*(np.linspace(0.0, 1.0, p.grid) for p in params))))
     rss = problem.rss(structure, grid)
     z0 = grid[int(np.argmin(rss))]
@@ -332,13 +341,14 @@ def _fit_one(problem: _Problem, structure: ServoStructure, ss_total: float) -> t
     return best, best_rss
 
 
-def _bound_hits(structure: ServoStructure, z: np.ndarray) -> tuple[str, ...]:
+def _bound_hits(structure: ServoStructure, values: dict[str, float]) -> tuple[str, ...]:
+    """The fitted parameters on an implausible bound of :data:`SERVO_PARAMETERS`, in words."""
     hits = []
-    for name, zi in zip(structure.fitted, z, strict=True):
-        p = SERVO_PARAMETERS[name]
-        if zi >= 1.0 - 1e-3:
+    for name in structure.fitted:
+        p, value = SERVO_PARAMETERS[name], values[name]
+        if value >= p.upper - 1e-3 * (p.upper - p.lower):
             hits.append(f"{name} at its upper bound {p.upper:g} {p.unit}")
-        elif zi <= 1e-3 and not p.lower_is_a_result:
+        elif value <= p.lower + 1e-3 * (p.upper - p.lower) and not p.lower_is_a_result:
             hits.append(f"{name} at its lower bound {p.lower:g} {p.unit}")
     return tuple(hits)
 
@@ -380,7 +390,7 @@ def fit_servo(
                 rate_limit=v["rate_limit"] if "rate_limit" in structure.fitted else None,
                 r2=1.0 - rss / ss_total if ss_total > 0 else 1.0,
                 bic=bic,
-                at_bound=_bound_hits(structure, z),
+                at_bound=_bound_hits(structure, v),
             )
         )
     return tuple(sorted(fits, key=lambda f: f.bic))
