@@ -304,3 +304,31 @@ def test_compare_on_a_zoo_car_records_it(tmp_path):
     result = json.loads((out / "results.json").read_text())
     assert result["config"]["scenario"]["car"]["name"] == "light-short"
     assert main(["compare", "--controllers", "pp", "--car", "tank", "--out", str(out)]) == 2
+
+
+def test_train_identified_reports_identification_warnings_in_its_output(tmp_path, capsys):
+    import warnings
+
+    import numpy as np
+
+    from rkmpc.core.errors import IdentificationWarning
+    from rkmpc.learning.data.dataset import TransitionDataset
+    from rkmpc.learning.io import load_identified
+
+    # A car cornering steadily on a held wheel angle: the servo cannot be identified.
+    n = 60
+    obs = np.zeros((n + 1, 7))
+    obs[:, 3], obs[:, 6], obs[:, 5] = 3.0, 0.1, np.nan
+    obs[:, 4] = 3.0 * np.tan(0.1) / 0.4
+    command = np.column_stack([np.full(n, 3.0), np.full(n, 0.1)])
+    data = tmp_path / "data.npz"
+    TransitionDataset(obs[:-1], command, obs[1:], 0.05, np.zeros(n, dtype=int)).save(data)
+    out = tmp_path / "id.json"
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert main(["train", "--data", str(data), "--kind", "identified", "--out", str(out)]) == 0
+    assert not [w for w in caught if issubclass(w.category, IdentificationWarning)]
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].startswith("identified servo nominal: tau 0.158 s")
+    assert lines[1].startswith("warning: servo: the wheel angle barely moves")
+    assert load_identified(out).warnings[0] == lines[1].removeprefix("warning: ")

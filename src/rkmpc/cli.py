@@ -10,11 +10,12 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+import warnings
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from rkmpc.core.errors import RkmpcError
+from rkmpc.core.errors import IdentificationWarning, RkmpcError
 
 _VEHICLES = ["f1tenth", "fullsize"]
 _CACHE_HELP = "trained-model cache (default: $RKMPC_CACHE_DIR, else ~/.cache/rkmpc)"
@@ -178,7 +179,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         "compare": _cmd_compare,
     }
     try:
-        return commands[args.command](args)
+        # Identification warnings are part of each command's own report (train's lines, the
+        # comparison's messages and results.json), not Python warnings on stderr besides.
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", IdentificationWarning)
+            return commands[args.command](args)
     except (RkmpcError, ValueError, OSError) as exc:
         print(f"rkmpc: error: {exc}", file=sys.stderr)
         return 2
@@ -263,7 +268,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
     from rkmpc.sim.scenario import vehicle_preset
 
     data = TransitionDataset.load(args.data)
-    wheelbase = vehicle_preset(args.vehicle).params().wheelbase
+    vehicle = vehicle_preset(args.vehicle).params()
     console = Console(stderr=True)
     with Progress(console=console, transient=True, disable=not console.is_terminal) as progress:
         task = progress.add_task(f"training {args.kind}", total=args.epochs or 100)
@@ -272,7 +277,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
             progress.update(task, completed=epoch, description=f"training {args.kind} (loss {loss:.3g})")
 
         lines = train_to_file(
-            data, wheelbase, args.kind, args.out, seed=args.seed, epochs=args.epochs, on_epoch=on_epoch
+            data, vehicle, args.kind, args.out, seed=args.seed, epochs=args.epochs, on_epoch=on_epoch
         )
     print("\n".join(lines))
     return 0

@@ -10,6 +10,7 @@ from numpy.testing import assert_allclose, assert_array_equal
 
 from rkmpc.control.guard import CommandGuard, SpeedFloor, WheelAngleEstimate
 from rkmpc.core.errors import ParameterError
+from rkmpc.learning.servo_fit import lag_delay_weights
 from rkmpc.vehicle.params import f1tenth
 
 DT = 0.05
@@ -265,3 +266,29 @@ def test_speed_floor_over_a_horizon_and_a_disabled_floor(vehicle):
     assert_allclose(guard.speed_floor(np.array([1.0, 2.0, 4.0])), [0.25, 0.5, 1.0])
     off = CommandGuard(vehicle, DT, HORIZON, SpeedFloor(fraction=0.0))
     assert off.apply(np.array([0.0, 0.0]), 2.0)[0] == vehicle.drive.min_speed
+
+
+@pytest.mark.parametrize("delay", [0.02, 0.05, 0.12])
+def test_wheel_angle_estimate_with_a_delay_is_the_delayed_lag_of_the_commands(delay):
+    tau = 0.1
+    est = WheelAngleEstimate(tau, DT, delay)
+    a, w = lag_delay_weights(tau, delay, DT)
+    assert est.a == a
+    np.testing.assert_array_equal(est.weights, w)
+    rng = np.random.default_rng(3)
+    steer = rng.uniform(-0.4, 0.4, 40)
+    # Before the first command every past command is taken equal to it.
+    assert est(math.nan, np.array([1.0, steer[0]])) == pytest.approx(steer[0])
+    assert_array_equal(est.past_commands, np.full(len(w), steer[0]))
+    sent = [steer[0]] * len(w)
+    expected = steer[0]
+    for u in steer[1:]:
+        sent.insert(0, u)  # sent[j] = u_{k-1-j} as of this call
+        expected = a * expected + float(np.dot(w, sent[: len(w)]))
+        assert est(math.nan, np.array([1.0, u])) == pytest.approx(expected, rel=1e-12, abs=1e-15)
+        assert_array_equal(est.past_commands, sent[: len(w)])
+    # A measurement wins, and the commands are still recorded.
+    assert est(0.2, np.array([1.0, 0.3])) == 0.2
+    assert est.past_commands[0] == 0.3
+    est.reset()
+    assert_array_equal(est.past_commands, np.zeros(len(w)))

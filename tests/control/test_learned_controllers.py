@@ -39,7 +39,7 @@ def learned(builtin_scenario):
     return {
         "data": data,
         "report": report,
-        "lmpc-id": identify(data, L),
+        "lmpc-id": identify(data, sc.vehicle),
         "rkmpc": residual,
         "rkmpc-paper": paper,
         "kmpc": koopman,
@@ -57,6 +57,9 @@ def test_identification_finds_the_plant_servo(learned):
     ident = learned["lmpc-id"]
     # The plant's servo time constant is 0.158 s; the car understeers.
     assert ident.servo_time_constant == pytest.approx(0.158, rel=0.05)
+    # A first-order lag whose rate limit the LMPC never reaches: chosen as such, no warnings.
+    assert (ident.servo_structure, ident.servo_delay, ident.servo_rate_limit) == ("lag", 0.0, None)
+    assert ident.warnings == ()
     assert ident.understeer_gradient > 0.003
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import asdict
 
 import numpy as np
@@ -24,11 +25,16 @@ def _identified() -> IdentifiedModel:
         servo_fit_r2=0.97,
         understeer_fit_r2=0.81,
         n_samples=1099,
+        servo_structure="delay-lag-rate",
+        servo_delay=0.032,
+        servo_rate_limit=3.1,
+        warnings=("understeer: the fit gives K = 0.3 s^2/m, beyond the plausible range; held at 0.1",),
     )
 
 
 def _payload(**changes) -> dict:
-    payload = {"format": "rkmpc-identified", "version": 1, "model": asdict(_identified()), "metadata": {}}
+    model = {**asdict(_identified()), "warnings": list(_identified().warnings)}
+    payload = {"format": "rkmpc-identified", "version": 2, "model": model, "metadata": {}}
     payload.update(changes)
     return payload
 
@@ -67,11 +73,86 @@ def test_identified_round_trip(tmp_path):
     # The file is plain JSON with the format tag, the model's fields and the metadata.
     payload = json.loads(path.read_text())
     assert payload["format"] == "rkmpc-identified"
-    assert payload["version"] == 1
-    assert payload["model"] == asdict(model)
+    assert payload["version"] == 2
+    assert payload["model"] == {**asdict(model), "warnings": list(model.warnings)}
     assert payload["metadata"] == {"track": "builtin", "dt": 0.05, "laps": 2}
     # Written atomically: nothing but the file is left in the folder.
     assert sorted(p.name for p in tmp_path.iterdir()) == ["model.json"]
+
+
+def test_identified_round_trip_of_a_nominal_fallback_without_fits(tmp_path):
+    path = tmp_path / "model.json"
+    model = IdentifiedModel(0.158, 0.0, math.nan, math.nan, 40, "nominal", warnings=("servo: ...",))
+    save_identified(model, path)
+    payload = json.loads(path.read_text())  # strict JSON: no NaN in the file
+    assert payload["model"]["servo_fit_r2"] is None and payload["model"]["servo_rate_limit"] is None
+    loaded = load_identified(path)
+    assert math.isnan(loaded.servo_fit_r2) and math.isnan(loaded.understeer_fit_r2)
+    assert (loaded.servo_structure, loaded.servo_rate_limit, loaded.warnings) == (
+        "nominal",
+        None,
+        ("servo: ...",),
+    )
+
+
+def test_a_version_1_file_loads_as_a_lag_without_delay_rate_limit_or_warnings(tmp_path):
+    path = tmp_path / "old.json"
+    v1 = {
+        "servo_time_constant": 0.153,
+        "understeer_gradient": 0.0042,
+        "servo_fit_r2": 0.97,
+        "understeer_fit_r2": 0.81,
+        "n_samples": 1099,
+    }
+    _write(path, {"format": "rkmpc-identified", "version": 1, "model": v1, "metadata": {}})
+    model = load_identified(path)
+    assert model == IdentifiedModel(**v1)
+    assert (model.servo_structure, model.servo_delay, model.servo_rate_limit, model.warnings) == (
+        "lag",
+        0.0,
+        None,
+        (),
+    )
+
+
+def test_a_version_1_file_with_version_2_fields_is_refused(tmp_path):
+    path = tmp_path / "model.json"
+    _write(path, _payload(version=1))
+    with pytest.raises(InputFileError, match=r"\[model\]: expected the fields .* \(version 1\)") as info:
+        load_identified(path)
+    assert info.value.field == "model"
+
+
+@pytest.mark.parametrize("version", [3, 0, "2", None, True])
+def test_an_unknown_version_is_refused(tmp_path, version):
+    path = tmp_path / "model.json"
+    _write(path, _payload(version=version))
+    with pytest.raises(InputFileError, match=r"model\.json \[version\]: unknown version") as info:
+        load_identified(path)
+    assert info.value.field == "version"
+
+
+@pytest.mark.parametrize(
+    ("field", "value"),
+    [
+        ("servo_structure", "quantum"),
+        ("servo_structure", None),
+        ("servo_delay", -0.01),
+        ("servo_delay", "20 ms"),
+        ("servo_rate_limit", 0.0),
+        ("servo_rate_limit", float("inf")),
+        ("warnings", "one long warning"),
+        ("warnings", [1, 2]),
+        ("n_samples", 10.5),
+        ("servo_fit_r2", "good"),
+    ],
+)
+def test_bad_version_2_fields_name_the_field(tmp_path, field, value):
+    path = tmp_path / "model.json"
+    _write(path, _payload(model=_model_fields(**{field: value})))
+    with pytest.raises(InputFileError, match=rf"model\.json \[model\]: IdentifiedModel\.{field}") as info:
+        load_identified(path)
+    assert info.value.field == "model"
 
 
 def test_identified_save_overwrites_and_defaults_metadata(tmp_path):
@@ -126,7 +207,7 @@ def test_identified_wrong_format(tmp_path, payload):
 
 
 def _model_fields(**changes) -> dict:
-    data = asdict(_identified())
+    data = dict(_payload()["model"])
     data.update(changes)
     return data
 

@@ -34,3 +34,7 @@ class InputFileError(RkmpcError, ValueError):
 
 class ParameterError(RkmpcError, ValueError):
     """A parameter set failed validation (names the parameter and the problem)."""
+
+
+class IdentificationWarning(UserWarning):
+    """Identification kept a nominal or bounded value because the data did not support a fit."""

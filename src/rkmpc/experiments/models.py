@@ -235,7 +235,9 @@ def learn_models(
         for name, recipe in on_track:
             if recipe.learner == "identification":
                 t0 = time.perf_counter()
-                ident = identify(data, scenario.vehicle.wheelbase)
+                ident = identify(data, scenario.vehicle)
+                for warning in ident.warnings:
+                    tell(f"{name}: identification warning: {warning}")
                 records[name] = ModelRecord(
                     kind=recipe.kind,
                     raw_samples=len(data),

@@ -14,6 +14,7 @@ from dataclasses import asdict, dataclass, field
 from typing import Any
 
 from rkmpc.analysis.metrics import LapMetrics
+from rkmpc.core.jsonutil import to_json_ready
 from rkmpc.learning.identification import IdentifiedModel
 
 __all__ = ["ControllerRun", "DataRecord", "FaultOutcome", "ModelRecord", "TrackResult", "TrainingRecord"]
@@ -96,7 +97,7 @@ class ModelRecord:
             value = getattr(self, name)
             if value is None and not (trained and name in self._ALWAYS):
                 continue
-            out[name] = asdict(value) if isinstance(value, IdentifiedModel) else value
+            out[name] = to_json_ready(value) if isinstance(value, IdentifiedModel) else value
         return out
 
     @classmethod

@@ -6,17 +6,31 @@ from collections.abc import Callable
 from pathlib import Path
 
 from rkmpc.learning.data.dataset import TransitionDataset
-from rkmpc.learning.identification import identify
+from rkmpc.learning.identification import IdentifiedModel, identify
 from rkmpc.learning.io import save_identified
 from rkmpc.learning.pipeline import TrainConfig, train_model
 from rkmpc.learning.recipes import recipe_of_kind
+from rkmpc.vehicle.params import VehicleParams
 
-__all__ = ["train_to_file"]
+__all__ = ["describe_identified", "train_to_file"]
+
+
+def describe_identified(model: IdentifiedModel) -> str:
+    """One line: the servo structure and parameters, the understeer gradient, the fits' R^2."""
+    servo = f"servo {model.servo_structure}: tau {model.servo_time_constant:.3f} s"
+    if model.servo_delay > 0:
+        servo += f", delay {1000 * model.servo_delay:.0f} ms"
+    if model.servo_rate_limit is not None:
+        servo += f", rate limit {model.servo_rate_limit:.2f} rad/s"
+    return (
+        f"identified {servo} (R^2 {model.servo_fit_r2:.3f}); understeer K {model.understeer_gradient:.4f} "
+        f"s^2/m (R^2 {model.understeer_fit_r2:.3f}); {model.n_samples} transitions"
+    )
 
 
 def train_to_file(
     data: TransitionDataset,
-    wheelbase: float,
+    vehicle: VehicleParams,
     kind: str,
     out: str | Path,
     *,
@@ -30,8 +44,9 @@ def train_to_file(
     ----------
     data : TransitionDataset
         The data set (on-track laps, or random excitation for ``koopman``).
-    wheelbase : float
-        Wheelbase of the nominal kinematic model (m).
+    vehicle : VehicleParams
+        The car's nominal parameters: the wheelbase of the kinematic model (m), and the
+        servo identification falls back to when the data do not support a fit.
     kind : str
         Model kind of a recipe (:func:`rkmpc.learning.recipes.model_kinds`).
     out : str or Path
@@ -46,15 +61,16 @@ def train_to_file(
     Returns
     -------
     list of str
-        A summary of what was written, line by line.
+        A summary of what was written, line by line; for an identified model, one
+        ``warning:`` line per identification warning.
     """
     recipe = recipe_of_kind(kind)
     if recipe.learner == "identification":
-        ident = identify(data, wheelbase)
+        ident = identify(data, vehicle)
         save_identified(ident, out, {"data_hash": data.content_hash(), "data_metadata": data.metadata})
-        return [f"{ident} -> {out}"]
+        return [f"{describe_identified(ident)} -> {out}", *(f"warning: {w}" for w in ident.warnings)]
     config = TrainConfig(kind=kind, augment=recipe.augment(seed), model=recipe.default_model(seed, epochs))
-    model, report = train_model(data, wheelbase, config, on_epoch=on_epoch)
+    model, report = train_model(data, vehicle.wheelbase, config, on_epoch=on_epoch)
     model.save(out, metadata=model.metadata_)
     lines = [
         f"{kind} model: {report.raw_count} raw -> {report.augmented_count} augmented samples, "

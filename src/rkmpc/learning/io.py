@@ -3,28 +3,45 @@
 from __future__ import annotations
 
 import json
-from dataclasses import asdict, fields
+from dataclasses import fields
 from pathlib import Path
 from typing import Any
 
 from rkmpc.core.errors import InputFileError
 from rkmpc.core.io import write_json_atomic
+from rkmpc.core.jsonutil import to_json_ready
 from rkmpc.learning.identification import IdentifiedModel
 from rkmpc.learning.koopman.model import KoopmanModel
 from rkmpc.learning.recipes import recipe_of_kind
 
 _IDENTIFIED_FORMAT = "rkmpc-identified"
+#: Version 2 adds the servo structure, delay, rate limit and the identification warnings.
+_IDENTIFIED_VERSION = 2
+#: The fields of version 1 files; the others take their defaults (a lag without delay or rate limit).
+_VERSION_1_FIELDS = (
+    "servo_time_constant",
+    "understeer_gradient",
+    "servo_fit_r2",
+    "understeer_fit_r2",
+    "n_samples",
+)
 
 
 def save_identified(model: IdentifiedModel, path: str | Path, metadata: dict[str, Any] | None = None) -> None:
-    """Write an identified model as JSON (temporary file, then renamed)."""
+    """Write an identified model as JSON, format version 2 (temporary file, then renamed)."""
     write_json_atomic(
-        path, {"format": _IDENTIFIED_FORMAT, "version": 1, "model": asdict(model), "metadata": metadata or {}}
+        path,
+        {
+            "format": _IDENTIFIED_FORMAT,
+            "version": _IDENTIFIED_VERSION,
+            "model": to_json_ready(model),
+            "metadata": metadata or {},
+        },
     )
 
 
 def load_identified(path: str | Path) -> IdentifiedModel:
-    """Read a model written by :func:`save_identified`; clear errors for bad files."""
+    """Read a model written by :func:`save_identified` (version 1 or 2); clear errors for bad files."""
     path = Path(path)
     try:
         payload = json.loads(path.read_text())
@@ -34,10 +51,17 @@ def load_identified(path: str | Path) -> IdentifiedModel:
         raise InputFileError(path, f"not an identified-model JSON file: {exc}") from None
     if not isinstance(payload, dict) or payload.get("format") != _IDENTIFIED_FORMAT:
         raise InputFileError(path, f"not an {_IDENTIFIED_FORMAT} file", field="format")
+    version = payload.get("version")
+    if version not in (1, _IDENTIFIED_VERSION) or isinstance(version, bool):
+        raise InputFileError(
+            path,
+            f"unknown version {version!r}; this rkmpc reads versions 1 and {_IDENTIFIED_VERSION}",
+            field="version",
+        )
     data = payload["model"] if isinstance(payload.get("model"), dict) else None
-    names = [f.name for f in fields(IdentifiedModel)]
+    names = list(_VERSION_1_FIELDS) if version == 1 else [f.name for f in fields(IdentifiedModel)]
     if data is None or sorted(data) != sorted(names):
-        raise InputFileError(path, f"expected the fields {names}", field="model")
+        raise InputFileError(path, f"expected the fields {names} (version {version})", field="model")
     try:
         return IdentifiedModel(**data)
     except (TypeError, ValueError) as exc:
