@@ -1,11 +1,14 @@
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
 from rkmpc.analysis.metrics import lap_metrics
 from rkmpc.control import Observation, make_controller
+from rkmpc.control.learned.adaptation import AdaptationConfig
 from rkmpc.control.learned.rkmpc import ResidualKoopmanMPC
+from rkmpc.control.learned.trust import TrustConfig
 from rkmpc.experiments.runs import run_controller
 from rkmpc.learning.data.augmentation import AugmentConfig
 from rkmpc.learning.identification import identify
@@ -177,3 +180,44 @@ def test_kmpc_gradient_equals_the_textbook_formula(builtin_scenario, learned):
         f = 2.0 * (ctrl._MtQ @ (ctrl._Mz @ z0 - local) - p.r_diag * u_ref - p.D.T @ (p.w_rate * d0))
         np.testing.assert_allclose(seen[-1], f, rtol=1e-12, atol=1e-12)
     assert len(seen) == 3
+
+
+def test_trust_guard_fades_the_correction_outside_the_training_range(builtin_scenario, learned):
+    sc = builtin_scenario
+    model = learned["rkmpc"]
+    cfg = replace(ResidualKoopmanMPC.default_config, trust=TrustConfig())
+    ctrl = ResidualKoopmanMPC(sc.reference, sc.vehicle, model, config=cfg)
+    lmpc = make_controller("lmpc", sc.reference, sc.vehicle)
+    p = sc.reference.path.position(4.0)
+    span = model.x_max_[0] - model.x_min_[0]
+    fast = float(model.x_max_[0] + 0.5 * span)  # half a span faster than any training speed
+    obs = Observation(
+        x=float(p[0]), y=float(p[1]), yaw=float(sc.reference.path.heading(4.0)), speed=fast, steer_angle=0.0
+    )
+    cmd, base = ctrl.step(obs), lmpc.step(obs)
+    assert ctrl.trust is not None and ctrl.trust.trust == 0.0
+    assert ctrl.diagnostics()["trust_faded_range"] == 1.0
+    assert cmd.steer == pytest.approx(base.steer) and cmd.speed == pytest.approx(base.speed)
+
+
+def test_adaptation_learns_on_the_car_and_stays_finite(builtin_scenario, learned):
+    sc = builtin_scenario
+    cfg = replace(ResidualKoopmanMPC.default_config, adaptation=AdaptationConfig(enabled=True))
+    ctrl = ResidualKoopmanMPC(sc.reference, sc.vehicle, learned["rkmpc"], config=cfg)
+    result = simulate(make_plant("f1tenth"), ctrl, sc.track, sc.reference, SimConfig(max_time=3.0))
+    assert result.diagnostics["rls_updates"] > 40
+    commands = np.column_stack([result.log["cmd_speed"], result.log["cmd_steer"]])
+    assert np.all(np.isfinite(commands[:-1]))
+    assert result.outcome == "timeout"
+
+
+def test_steering_rate_weight_slows_the_commanded_wheel(builtin_scenario, learned):
+    sc = builtin_scenario
+    rates = []
+    for weight in (0.0, 20.0):
+        cfg = replace(ResidualKoopmanMPC.default_config, steer_rate_weight=weight)
+        options = {"model": learned["rkmpc"], "config": cfg}
+        _, metrics = run_controller(sc, RunSpec("rkmpc"), controller_options=options)
+        assert metrics.completed
+        rates.append(metrics.command_rate_mean_rad_s)
+    assert rates[1] < rates[0]
