@@ -39,9 +39,11 @@ CASES = (
 
 #: The rkmpc settings compared, by label.
 VARIANTS = {
-    "fixed": RKMPC_CONFIG,
+    "fixed": replace(RKMPC_CONFIG, trust=TrustConfig(enabled=False)),
     "trust": replace(RKMPC_CONFIG, trust=TrustConfig()),
-    "adapt": replace(RKMPC_CONFIG, adaptation=AdaptationConfig(enabled=True)),
+    "adapt": replace(
+        RKMPC_CONFIG, trust=TrustConfig(enabled=False), adaptation=AdaptationConfig(enabled=True)
+    ),
     "trust+adapt": replace(RKMPC_CONFIG, trust=TrustConfig(), adaptation=AdaptationConfig(enabled=True)),
 }
 

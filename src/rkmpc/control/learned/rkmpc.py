@@ -105,7 +105,7 @@ class ResidualMPCConfig:
     solver: str = "daqp"
     max_iterations: int = 200
     steer_rate_weight: float = 0.0
-    trust: TrustConfig = field(default_factory=lambda: TrustConfig(enabled=False))
+    trust: TrustConfig = field(default_factory=TrustConfig)
     adaptation: AdaptationConfig = field(default_factory=AdaptationConfig)
 
     def __post_init__(self) -> None:
