@@ -22,6 +22,7 @@ from rkmpc.core.errors import ParameterError
 from rkmpc.core.versions import RKMPC_VERSION
 from rkmpc.experiments.cache import ModelCache
 from rkmpc.experiments.results import DataRecord, ModelRecord, TrainingRecord
+from rkmpc.learning.contract import contract_of
 from rkmpc.learning.data.dataset import TransitionDataset
 from rkmpc.learning.identification import identify
 from rkmpc.learning.io import load_model
@@ -113,7 +114,7 @@ def train_excitation_model(
         data = collect_excitation(scenario, n_samples=samples, seed=seed)
         collect_time = time.perf_counter() - t0
         config = TrainConfig(kind=recipe.kind, augment=augment, model=model)
-        fitted, report = train_model(data, scenario.vehicle.wheelbase, config)
+        fitted, report = train_model(data, scenario.vehicle.wheelbase, config, vehicle=scenario.vehicle_name)
         return fitted, _record(report, recipe.kind, fitted, collect_time_s=collect_time)
 
     return _through_cache(cache, spec, build)
@@ -145,7 +146,7 @@ def train_track_model(
     }
 
     def build() -> tuple[KoopmanModel, ModelRecord]:
-        model, report = train_model(data, scenario.vehicle.wheelbase, config)
+        model, report = train_model(data, scenario.vehicle.wheelbase, config, vehicle=scenario.vehicle_name)
         return model, _record(report, recipe.kind, model)
 
     return _through_cache(cache, spec, build)
@@ -173,6 +174,9 @@ class ModelPlan:
         Read and write trained models in the cache.
     epochs : int or None
         Training epochs of every model (None: the recipes' defaults).
+    allow_mismatch : bool
+        Use model files made with another car, period or track scale than the scenario's, with a
+        warning kept in the model's record, instead of refusing them.
     """
 
     controllers: Sequence[str]
@@ -183,6 +187,7 @@ class ModelPlan:
     cache_dir: str | None = None
     use_cache: bool = True
     epochs: int | None = None
+    allow_mismatch: bool = False
 
     def __post_init__(self) -> None:
         files = dict(self.model_files)
@@ -200,12 +205,21 @@ def learn_models(
 
     ``say``, when given, is called with a short message before each slow stage.
 
+    Every model is checked against the scenario (car, wheelbase, period, track scale:
+    :meth:`rkmpc.learning.contract.Provenance.check`) before anything is driven.
+
     Returns
     -------
     options : dict
-        Controller options (``model``) by controller name.
+        Controller options (``model``, ``allow_mismatch``) by controller name.
     training : TrainingRecord
-        The data and a record per model.
+        The data and a record per model (with the contract warnings of a model used on request
+        with another car or period).
+
+    Raises
+    ------
+    ContractError
+        When a model file was made with another car, period or scale, unless ``plan.allow_mismatch``.
     """
     tell = say if say is not None else (lambda _msg: None)
     cache = ModelCache(plan.cache_dir) if plan.use_cache else None
@@ -261,5 +275,16 @@ def learn_models(
             )
             records[name] = record
             options[name] = {"model": model}
+    for name, option in options.items():
+        option["allow_mismatch"] = plan.allow_mismatch
+        model = option["model"]
+        if not isinstance(model, KoopmanModel):
+            continue  # identified models carry no contract
+        source = plan.model_files[name] if name in plan.model_files else f"the {name} model"
+        warned = contract_of(model.metadata_).check(
+            scenario.provenance(), source=str(source), made="trained", allow_mismatch=plan.allow_mismatch
+        )
+        if warned:
+            records[name] = replace(records[name], contract_warnings=list(warned))
     ordered = {name: records[name] for name in plan.controllers if name in records}
     return options, TrainingRecord(data=data_record, models=ordered)
