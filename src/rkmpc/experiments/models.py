@@ -205,8 +205,9 @@ def learn_models(
 
     ``say``, when given, is called with a short message before each slow stage.
 
-    Every model is checked against the scenario (car, wheelbase, period, track scale:
-    :meth:`rkmpc.learning.contract.Provenance.check`) before anything is driven.
+    Every model file is checked against the scenario (car, wheelbase, period, track scale:
+    :meth:`rkmpc.learning.contract.Provenance.check`) as it is read, before anything is collected,
+    trained or driven; the models trained here are made for the scenario.
 
     Returns
     -------
@@ -228,8 +229,15 @@ def learn_models(
     wanted = [(name, r) for name in plan.controllers if (r := recipe_for(name)) is not None]
     for name, recipe in wanted:
         if name in plan.model_files:
-            options[name] = {"model": load_model(plan.model_files[name], recipe.kind)}
-            records[name] = ModelRecord(model_file=str(plan.model_files[name]))
+            path = str(plan.model_files[name])
+            model = load_model(path, recipe.kind)
+            warned: tuple[str, ...] = ()
+            if isinstance(model, KoopmanModel):  # identified models are not checked when read
+                warned = contract_of(model.metadata_).check(
+                    scenario.provenance(), source=path, made="trained", allow_mismatch=plan.allow_mismatch
+                )
+            options[name] = {"model": model}
+            records[name] = ModelRecord(model_file=path, contract_warnings=list(warned) or None)
     on_track = [(n, r) for n, r in wanted if r.data == "track" and n not in plan.model_files]
     data_record = None
     if on_track:
@@ -275,16 +283,7 @@ def learn_models(
             )
             records[name] = record
             options[name] = {"model": model}
-    for name, option in options.items():
+    for option in options.values():
         option["allow_mismatch"] = plan.allow_mismatch
-        model = option["model"]
-        if not isinstance(model, KoopmanModel):
-            continue  # identified models carry no contract
-        source = plan.model_files[name] if name in plan.model_files else f"the {name} model"
-        warned = contract_of(model.metadata_).check(
-            scenario.provenance(), source=str(source), made="trained", allow_mismatch=plan.allow_mismatch
-        )
-        if warned:
-            records[name] = replace(records[name], contract_warnings=list(warned))
     ordered = {name: records[name] for name in plan.controllers if name in records}
     return options, TrainingRecord(data=data_record, models=ordered)
