@@ -32,7 +32,15 @@ def builtin_scenario():
 
 
 @pytest.fixture(scope="session")
-def small_paper_model(builtin_scenario):
+def builtin_lap(builtin_scenario):
+    """One LMPC lap of the built-in track as a data set (with its contract)."""
+    from rkmpc.sim.collect import collect
+
+    return collect(builtin_scenario, laps=1)
+
+
+@pytest.fixture(scope="session")
+def small_paper_model(builtin_scenario, builtin_lap):
     """An ``rkmpc-paper`` model in seconds: one LMPC lap of the built-in track, no lifting network.
 
     The literal reading's lifted linear model on the local pose (``z = [x, y, theta]``), fitted by
@@ -41,10 +49,8 @@ def small_paper_model(builtin_scenario):
     from rkmpc.learning.data.augmentation import AugmentConfig
     from rkmpc.learning.koopman.model import KoopmanModel
     from rkmpc.learning.pipeline import TrainConfig, train_model
-    from rkmpc.sim.collect import collect
 
     sc = builtin_scenario
-    data = collect(sc, laps=1)
     config = TrainConfig(kind="paper", augment=AugmentConfig(ratio=0.2), model=KoopmanModel(None))
-    model, _ = train_model(data, sc.vehicle.wheelbase, config)
+    model, _ = train_model(builtin_lap, sc.vehicle.wheelbase, config, vehicle=sc.vehicle_name)
     return model

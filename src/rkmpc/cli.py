@@ -61,6 +61,13 @@ def _add_learning_args(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--cache-dir", type=Path, default=None, help=_CACHE_HELP)
     parser.add_argument("--no-cache", action="store_true", help="train every model afresh, store nothing")
     parser.add_argument("--epochs", type=int, default=None, help="training epochs of the learned models")
+    _add_mismatch_arg(parser, "drive with --model files made with another car, period or track scale")
+
+
+def _add_mismatch_arg(parser: argparse.ArgumentParser, what: str) -> None:
+    parser.add_argument(
+        "--allow-mismatch", action="store_true", help=f"{what} (refused otherwise; the results record it)"
+    )
 
 
 def _add_parallel_args(parser: argparse.ArgumentParser) -> None:
@@ -158,7 +165,9 @@ def build_parser() -> argparse.ArgumentParser:
     train = sub.add_parser("train", help="train a model from a data set")
     train.add_argument("--data", required=True, type=Path)
     train.add_argument("--kind", required=True, choices=model_kinds())
-    train.add_argument("--vehicle", default="f1tenth", choices=_VEHICLES)
+    train.add_argument("--vehicle", default="f1tenth", choices=_VEHICLES, help="the car the model is for")
+    train.add_argument("--dt", type=float, default=0.05, help="control period the model is for (s)")
+    _add_mismatch_arg(train, "train on data recorded with another car or period")
     train.add_argument("--epochs", type=int, default=None)
     train.add_argument("--seed", type=int, default=0)
     train.add_argument("--out", required=True, type=Path, help="model file")
@@ -264,11 +273,13 @@ def _cmd_train(args: argparse.Namespace) -> int:
     from rich.progress import Progress
 
     from rkmpc.experiments.training import train_to_file
+    from rkmpc.learning.contract import Provenance
     from rkmpc.learning.data.dataset import TransitionDataset
     from rkmpc.sim.scenario import vehicle_preset
 
     data = TransitionDataset.load(args.data)
     vehicle = vehicle_preset(args.vehicle).params()
+    made_for = Provenance(vehicle=args.vehicle, dt=args.dt, wheelbase=vehicle.wheelbase)
     console = Console(stderr=True)
     with Progress(console=console, transient=True, disable=not console.is_terminal) as progress:
         task = progress.add_task(f"training {args.kind}", total=args.epochs or 100)
@@ -277,7 +288,16 @@ def _cmd_train(args: argparse.Namespace) -> int:
             progress.update(task, completed=epoch, description=f"training {args.kind} (loss {loss:.3g})")
 
         lines = train_to_file(
-            data, vehicle, args.kind, args.out, seed=args.seed, epochs=args.epochs, on_epoch=on_epoch
+            data,
+            made_for,
+            vehicle,
+            args.kind,
+            args.out,
+            seed=args.seed,
+            epochs=args.epochs,
+            on_epoch=on_epoch,
+            allow_mismatch=args.allow_mismatch,
+            source=str(args.data),
         )
     print("\n".join(lines))
     return 0
@@ -309,6 +329,7 @@ def _cmd_compare(args: argparse.Namespace) -> int:
         model_files=tuple(_model_files(names, args.model).items()),
         epochs=args.epochs,
         car=args.car,
+        allow_mismatch=args.allow_mismatch,
     )
     out: Path = args.out
     out.mkdir(parents=True, exist_ok=True)

@@ -15,6 +15,8 @@ from typing import TYPE_CHECKING, Any
 
 from rkmpc.control.base import Controller
 from rkmpc.core.errors import ParameterError
+from rkmpc.learning.contract import Provenance, contract_of
+from rkmpc.learning.koopman.model import KoopmanModel
 from rkmpc.learning.recipes import RECIPES
 from rkmpc.vehicle.params import VehicleParams
 
@@ -66,8 +68,14 @@ def register_controller(name: str, factory: ControllerFactory) -> None:
     CONTROLLERS[name] = factory
 
 
-def make_controller(name: str, reference: Reference, vehicle: VehicleParams, **options: Any) -> Controller:
+def make_controller(
+    name: str, reference: Reference, vehicle: VehicleParams, *, allow_mismatch: bool = False, **options: Any
+) -> Controller:
     """Build a controller by name.
+
+    A learned model that records what it was trained with (its contract,
+    :mod:`rkmpc.learning.contract`) is checked against the car (name, wheelbase) and the
+    controller's period: a model of another car or period is refused.
 
     Parameters
     ----------
@@ -83,6 +91,9 @@ def make_controller(name: str, reference: Reference, vehicle: VehicleParams, **o
         Path and speed profile to track.
     vehicle : VehicleParams
         The car's parameters.
+    allow_mismatch : bool
+        Use a model of another car or period anyway, with a
+        :class:`~rkmpc.core.errors.ContractWarning`.
     **options
         Passed to the controller, for example ``config=LMPCConfig(...)``.
 
@@ -96,6 +107,8 @@ def make_controller(name: str, reference: Reference, vehicle: VehicleParams, **o
         For an unknown name.
     ParameterError
         When a learned controller is built without its ``model``.
+    ContractError
+        When its model was trained with another car, wheelbase or period, unless ``allow_mismatch``.
     """
     try:
         factory = CONTROLLERS[name]
@@ -103,4 +116,11 @@ def make_controller(name: str, reference: Reference, vehicle: VehicleParams, **o
         raise ValueError(f"unknown controller {name!r}; known: {sorted(CONTROLLERS)}") from None
     if name in MODEL_KIND and ("model" not in options or options["model"] is None):
         raise ParameterError(f"controller {name!r} needs model= (a {MODEL_KIND[name]!r} model)")
-    return factory(reference, vehicle, **options)
+    controller = factory(reference, vehicle, **options)
+    model = options["model"] if "model" in options else None
+    if isinstance(model, KoopmanModel):
+        runs_with = Provenance(vehicle=vehicle.name, dt=controller.dt, wheelbase=vehicle.wheelbase)
+        contract_of(model.metadata_).check(
+            runs_with, source=f"the {name} model", made="trained", allow_mismatch=allow_mismatch
+        )
+    return controller

@@ -38,3 +38,24 @@ class ParameterError(RkmpcError, ValueError):
 
 class IdentificationWarning(UserWarning):
     """Identification kept a nominal or bounded value because the data did not support a fit."""
+
+
+class ContractError(RkmpcError, ValueError):
+    """A data set or a model is used with another car, period or track scale than it was made with.
+
+    Parameters
+    ----------
+    source : str
+        The file (or object) at fault.
+    problem : str
+        Every field that differs, with both values.
+    """
+
+    def __init__(self, source: str, problem: str) -> None:
+        self.source = source
+        self.problem = problem
+        super().__init__(problem)
+
+
+class ContractWarning(UserWarning):
+    """A data set or a model used, on request, with another car, period or scale than it was made with."""

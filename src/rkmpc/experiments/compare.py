@@ -101,6 +101,9 @@ class CompareConfig:
         A car of the zoo (:func:`rkmpc.vehicle.zoo.get_car`) to drive instead of the vehicle
         preset's plant; the data are recorded on it and every controller keeps the preset's
         nominal parameters.
+    allow_mismatch : bool
+        Drive with model files made with another car, period or track scale than the track's
+        scenario (refused otherwise); the warnings go to the result and to the runs' logs.
     """
 
     track: str
@@ -122,6 +125,7 @@ class CompareConfig:
     run_laps: int = 1
     epochs: int | None = None
     car: str | None = None
+    allow_mismatch: bool = False
 
     def __post_init__(self) -> None:
         for name, minimum in (("laps", 1), ("seed", 0), ("run_laps", 1), ("kmpc_samples", 1000)):
@@ -151,6 +155,7 @@ class CompareConfig:
             cache_dir=self.cache_dir,
             use_cache=self.use_cache,
             epochs=self.epochs,
+            allow_mismatch=self.allow_mismatch,
         )
 
     def scenario(self) -> Scenario:
@@ -220,6 +225,9 @@ def compare(
         own = options[spec.controller] if spec.controller in options else None
         result, metrics = run_controller(scenario, spec, controller_options=own)
         result.log.metadata.update({"track": scenario.track.name})
+        record = training.models[spec.controller] if spec.controller in training.models else None
+        if record is not None and record.contract_warnings:
+            result.log.metadata["contract_warnings"] = record.contract_warnings
         if logs is not None:
             logs[label] = result.log
         if on_run is not None:
@@ -243,6 +251,7 @@ def compare(
         "kmpc_model": config.kmpc_model,
         "kmpc_samples": config.kmpc_samples,
         "fault": config.fault,
+        "allow_mismatch": config.allow_mismatch,
         "versions": versions(),
     }
     fault = None if config.fault is None else FaultOutcome(config.fault, faulted, effects)

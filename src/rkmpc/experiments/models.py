@@ -22,6 +22,7 @@ from rkmpc.core.errors import ParameterError
 from rkmpc.core.versions import RKMPC_VERSION
 from rkmpc.experiments.cache import ModelCache
 from rkmpc.experiments.results import DataRecord, ModelRecord, TrainingRecord
+from rkmpc.learning.contract import contract_of
 from rkmpc.learning.data.dataset import TransitionDataset
 from rkmpc.learning.identification import identify
 from rkmpc.learning.io import load_model
@@ -115,7 +116,7 @@ def train_excitation_model(
         data = collect_excitation(scenario, n_samples=samples, seed=seed)
         collect_time = time.perf_counter() - t0
         config = TrainConfig(kind=recipe.kind, augment=augment, model=model)
-        fitted, report = train_model(data, scenario.vehicle.wheelbase, config)
+        fitted, report = train_model(data, scenario.vehicle.wheelbase, config, vehicle=scenario.vehicle_name)
         return fitted, _record(report, recipe.kind, fitted, collect_time_s=collect_time)
 
     return _through_cache(cache, spec, build)
@@ -147,7 +148,7 @@ def train_track_model(
     }
 
     def build() -> tuple[KoopmanModel, ModelRecord]:
-        model, report = train_model(data, scenario.vehicle.wheelbase, config)
+        model, report = train_model(data, scenario.vehicle.wheelbase, config, vehicle=scenario.vehicle_name)
         return model, _record(report, recipe.kind, model)
 
     return _through_cache(cache, spec, build)
@@ -175,6 +176,9 @@ class ModelPlan:
         Read and write trained models in the cache.
     epochs : int or None
         Training epochs of every model (None: the recipes' defaults).
+    allow_mismatch : bool
+        Use model files made with another car, period or track scale than the scenario's, with a
+        warning kept in the model's record, instead of refusing them.
     """
 
     controllers: Sequence[str]
@@ -185,6 +189,7 @@ class ModelPlan:
     cache_dir: str | None = None
     use_cache: bool = True
     epochs: int | None = None
+    allow_mismatch: bool = False
 
     def __post_init__(self) -> None:
         files = dict(self.model_files)
@@ -202,12 +207,22 @@ def learn_models(
 
     ``say``, when given, is called with a short message before each slow stage.
 
+    Every model file is checked against the scenario (car, wheelbase, period, track scale:
+    :meth:`rkmpc.learning.contract.Provenance.check`) as it is read, before anything is collected,
+    trained or driven; the models trained here are made for the scenario.
+
     Returns
     -------
     options : dict
-        Controller options (``model``) by controller name.
+        Controller options (``model``, ``allow_mismatch``) by controller name.
     training : TrainingRecord
-        The data and a record per model.
+        The data and a record per model (with the contract warnings of a model used on request
+        with another car or period).
+
+    Raises
+    ------
+    ContractError
+        When a model file was made with another car, period or scale, unless ``plan.allow_mismatch``.
     """
     tell = say if say is not None else (lambda _msg: None)
     cache = ModelCache(plan.cache_dir) if plan.use_cache else None
@@ -216,8 +231,15 @@ def learn_models(
     wanted = [(name, r) for name in plan.controllers if (r := recipe_for(name)) is not None]
     for name, recipe in wanted:
         if name in plan.model_files:
-            options[name] = {"model": load_model(plan.model_files[name], recipe.kind)}
-            records[name] = ModelRecord(model_file=str(plan.model_files[name]))
+            path = str(plan.model_files[name])
+            model = load_model(path, recipe.kind)
+            warned: tuple[str, ...] = ()
+            if isinstance(model, KoopmanModel):  # identified models are not checked when read
+                warned = contract_of(model.metadata_).check(
+                    scenario.provenance(), source=path, made="trained", allow_mismatch=plan.allow_mismatch
+                )
+            options[name] = {"model": model}
+            records[name] = ModelRecord(model_file=path, contract_warnings=list(warned) or None)
     on_track = [(n, r) for n, r in wanted if r.data == "track" and n not in plan.model_files]
     data_record = None
     if on_track:
@@ -265,5 +287,7 @@ def learn_models(
             )
             records[name] = record
             options[name] = {"model": model}
+    for option in options.values():
+        option["allow_mismatch"] = plan.allow_mismatch
     ordered = {name: records[name] for name in plan.controllers if name in records}
     return options, TrainingRecord(data=data_record, models=ordered)

@@ -68,7 +68,9 @@ class ModelRecord:
 
     A model read from a file records only ``model_file``; an identified model its
     parameters; a trained Koopman model its sample counts, held-out errors, the
-    state range it clips to, and whether it came from the cache.
+    state range it clips to, and whether it came from the cache. A model used on
+    request with another car, period or track scale than it was made with records
+    the warnings (``contract_warnings``).
     """
 
     kind: str | None = None
@@ -86,6 +88,7 @@ class ModelRecord:
     identified: IdentifiedModel | None = None
     cached: bool | None = None
     cache_key: str | None = None
+    contract_warnings: list[str] | None = None
 
     #: Fields written even when None (a trained model's held-out errors may be missing).
     _ALWAYS = ("heldout_error_step1", "heldout_error_last", "cache_key")

@@ -3,8 +3,11 @@
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 
+from rkmpc.core.errors import ParameterError
+from rkmpc.learning.contract import CONTRACT_KEY, Provenance
 from rkmpc.learning.data.dataset import TransitionDataset
 from rkmpc.learning.identification import IdentifiedModel, identify
 from rkmpc.learning.io import save_identified
@@ -30,6 +33,7 @@ def describe_identified(model: IdentifiedModel) -> str:
 
 def train_to_file(
     data: TransitionDataset,
+    made_for: Provenance,
     vehicle: VehicleParams,
     kind: str,
     out: str | Path,
@@ -37,16 +41,24 @@ def train_to_file(
     seed: int = 0,
     epochs: int | None = None,
     on_epoch: Callable[[int, float], None] | None = None,
+    allow_mismatch: bool = False,
+    source: str = "the data set",
 ) -> list[str]:
     """Identify or train the model of ``kind`` on ``data`` and write it to ``out``.
+
+    The data set's contract is checked against ``made_for`` first
+    (:meth:`rkmpc.learning.contract.Provenance.check`).
 
     Parameters
     ----------
     data : TransitionDataset
         The data set (on-track laps, or random excitation for ``koopman``).
+    made_for : Provenance
+        The car (vehicle name, wheelbase of the nominal kinematic model, m) and the control
+        period (s) the model is for.
     vehicle : VehicleParams
-        The car's nominal parameters: the wheelbase of the kinematic model (m), and the
-        servo identification falls back to when the data do not support a fit.
+        The car's nominal parameters: what servo identification falls back to when the data
+        do not support a fit.
     kind : str
         Model kind of a recipe (:func:`rkmpc.learning.recipes.model_kinds`).
     out : str or Path
@@ -57,24 +69,55 @@ def train_to_file(
         Training epochs (None: the recipe's default).
     on_epoch : callable, optional
         Progress callback ``(epoch, loss)``.
+    allow_mismatch : bool
+        Train on data of another car or period anyway (the warnings are kept in the model file).
+    source : str
+        Name of the data set in messages (its file).
 
     Returns
     -------
     list of str
         A summary of what was written, line by line; for an identified model, one
         ``warning:`` line per identification warning.
+
+    Raises
+    ------
+    ContractError
+        When the data were recorded with another car, wheelbase or period, unless ``allow_mismatch``.
     """
     recipe = recipe_of_kind(kind)
+    if made_for.wheelbase is None:
+        raise ParameterError("train_to_file: made_for must give the wheelbase of the car")
+    wheelbase = made_for.wheelbase
     if recipe.learner == "identification":
+        warned = data.contract.check(made_for, source=source, made="recorded", allow_mismatch=allow_mismatch)
         ident = identify(data, vehicle)
-        save_identified(ident, out, {"data_hash": data.content_hash(), "data_metadata": data.metadata})
-        return [f"{describe_identified(ident)} -> {out}", *(f"warning: {w}" for w in ident.warnings)]
-    config = TrainConfig(kind=kind, augment=recipe.augment(seed), model=recipe.default_model(seed, epochs))
-    model, report = train_model(data, vehicle.wheelbase, config, on_epoch=on_epoch)
+        contract = replace(data.contract, dt=data.dt, wheelbase=wheelbase, recorded=True)
+        metadata = {
+            "data_hash": data.content_hash(),
+            "data_metadata": data.metadata,
+            CONTRACT_KEY: contract.to_json(),
+            "contract_warnings": list(warned),
+        }
+        save_identified(ident, out, metadata)
+        return [f"{describe_identified(ident)} -> {out}", *warned, *(f"warning: {w}" for w in ident.warnings)]
+    config = TrainConfig(
+        kind=kind, augment=recipe.augment(seed), model=recipe.default_model(seed, epochs), dt=made_for.dt
+    )
+    model, report = train_model(
+        data,
+        wheelbase,
+        config,
+        on_epoch=on_epoch,
+        vehicle=made_for.vehicle,
+        allow_mismatch=allow_mismatch,
+        source=source,
+    )
     model.save(out, metadata=model.metadata_)
     lines = [
+        *model.metadata_["contract_warnings"],
         f"{kind} model: {report.raw_count} raw -> {report.augmented_count} augmented samples, "
-        f"{report.fit_time_s:.1f} s -> {out}"
+        f"{report.fit_time_s:.1f} s -> {out}",
     ]
     err = report.multi_step_error
     if err:

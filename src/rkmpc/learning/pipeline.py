@@ -20,7 +20,9 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from rkmpc.core.errors import ParameterError
+from rkmpc.core.validation import is_positive_number
 from rkmpc.core.versions import RKMPC_VERSION
+from rkmpc.learning.contract import CONTRACT_KEY, Provenance
 from rkmpc.learning.data.augmentation import AugmentConfig, LocalWindows, local_frame_windows
 from rkmpc.learning.data.dataset import TransitionDataset
 from rkmpc.learning.data.residuals import control_residuals
@@ -46,12 +48,16 @@ class TrainConfig:
         augmentation's seed (:meth:`rkmpc.learning.recipes.Recipe.default_model`).
     holdout : float
         Fraction of windows (the latest in time) kept out of training for the multi-step error report.
+    dt : float or None
+        Control period the model is for (s); a data set recorded at another period is refused
+        (:meth:`rkmpc.learning.contract.Provenance.check`). None: the data set's.
     """
 
     kind: str = "residual"
     augment: AugmentConfig = field(default_factory=AugmentConfig)
     model: KoopmanModel | None = None
     holdout: float = 0.2
+    dt: float | None = None
 
     def __post_init__(self) -> None:
         recipe = recipe_of_kind(self.kind)
@@ -62,6 +68,8 @@ class TrainConfig:
             raise ParameterError(f"TrainConfig.holdout must be in [0, 1), got {self.holdout}")
         if self.model is not None and not isinstance(self.model, KoopmanModel):
             raise ParameterError(f"TrainConfig.model must be a KoopmanModel or None, got {self.model!r}")
+        if self.dt is not None and not is_positive_number(self.dt):
+            raise ParameterError(f"TrainConfig.dt must be None or finite and > 0, got {self.dt!r}")
 
     def unfitted_model(self) -> KoopmanModel:
         """The model to fit: :attr:`model`, or the recipe's default."""
@@ -136,8 +144,16 @@ def train_model(
     config: TrainConfig | None = None,
     *,
     on_epoch: Callable[[int, float], None] | None = None,
+    vehicle: str | None = None,
+    allow_mismatch: bool = False,
+    source: str = "the data set",
 ) -> tuple[KoopmanModel, TrainReport]:
     """Train one model of ``config.kind`` on ``data``.
+
+    The data set's contract (:attr:`TransitionDataset.contract`) is checked against the car and
+    period the model is for (``vehicle``, ``wheelbase``, ``config.dt``); the model records its own
+    (:data:`rkmpc.learning.contract.CONTRACT_KEY` in ``metadata_``): the car, the data's period and
+    track scale, and the range of its state features.
 
     Parameters
     ----------
@@ -149,15 +165,34 @@ def train_model(
         Kind, augmentation and model settings.
     on_epoch : callable, optional
         Progress callback ``(epoch, loss)``.
+    vehicle : str or None
+        Vehicle preset the model is for (None: not checked; the data's is recorded).
+    allow_mismatch : bool
+        Train on data of another car or period anyway; the warnings are kept in the model's
+        metadata (``contract_warnings``).
+    source : str
+        Name of the data set in messages (its file).
 
     Returns
     -------
     model : KoopmanModel
         The fitted model; its metadata is set for saving.
     report : TrainReport
+
+    Raises
+    ------
+    ContractError
+        When the data were recorded with another car, wheelbase or period, unless ``allow_mismatch``.
     """
     cfg = config if config is not None else TrainConfig()
     recipe = recipe_of_kind(cfg.kind)
+    made_with = data.contract
+    warned = made_with.check(
+        Provenance(vehicle=vehicle, dt=cfg.dt, wheelbase=wheelbase),
+        source=source,
+        made="recorded",
+        allow_mismatch=allow_mismatch,
+    )
     windows = local_frame_windows(data, cfg.augment)
     n_hold = round(cfg.holdout * windows.n_windows) if windows.n_windows > 4 else 0
     split = windows.n_windows - n_hold
@@ -184,7 +219,18 @@ def train_model(
         fit_time_s=fit_time,
         multi_step_error=multi,
     )
+    contract = Provenance(
+        vehicle=made_with.vehicle if made_with.vehicle is not None else vehicle,
+        dt=data.dt,
+        wheelbase=wheelbase,
+        scale=made_with.scale,
+        features=() if recipe.state is None else recipe.state.names,
+        state_min=tuple(model.x_min_),
+        state_max=tuple(model.x_max_),
+    )
     model.metadata_ = {
+        CONTRACT_KEY: contract.to_json(),
+        "contract_warnings": list(warned),
         "kind": cfg.kind,
         "features": [] if recipe.state is None else list(recipe.state.names),
         "model_input": recipe.model_input,

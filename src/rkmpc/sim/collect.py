@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import asdict
+from dataclasses import asdict, replace
 from typing import Any
 
 from rkmpc.core.versions import versions
@@ -49,7 +49,8 @@ def collect(
         With metadata ``vehicle``, ``track``, ``scale``, ``dt`` (s),
         ``wheelbase`` (m), ``seed``, ``controller``, ``laps``, ``noise``,
         ``outcome``, ``completed``, ``progress_laps``, ``lap_times``,
-        ``rkmpc_version``, ``versions`` and ``source = "collect"``.
+        ``rkmpc_version``, ``versions``, ``source = "collect"`` and the contract
+        (:attr:`TransitionDataset.contract`: car, period, scale, state ranges).
     """
     spec = RunSpec(controller, laps=laps, seed=seed, noise=noise)
     result = drive(scenario, spec)
@@ -74,6 +75,7 @@ def collect(
         "rkmpc_version": all_versions["rkmpc"],
         "versions": all_versions,
     }
+    # The log records the scenario's contract (drive); the data set adds its state ranges.
     return TransitionDataset.from_log(result.log, metadata=metadata, dt=scenario.dt)
 
 
@@ -111,6 +113,8 @@ def collect_excitation(scenario: Scenario, *, n_samples: int = 50_000, seed: int
         "rkmpc_version": all_versions["rkmpc"],
         "versions": all_versions,
     }
-    return TransitionDataset(
+    data = TransitionDataset(
         obs=obs, command=command, next_obs=next_obs, dt=scenario.dt, episode=episode, metadata=metadata
     )
+    # The car in open space: the data do not depend on a track, so no scale is recorded.
+    return data.with_contract(replace(scenario.provenance(), scale=None))

@@ -9,6 +9,7 @@ from typing import Any
 from rkmpc.control.registry import make_controller
 from rkmpc.core.errors import ParameterError
 from rkmpc.core.versions import versions
+from rkmpc.learning.contract import CONTRACT_KEY
 from rkmpc.sim.closed_loop import SimConfig, SimResult, simulate
 from rkmpc.sim.faults import DEFAULT_NOISE, NoiseFault, get_fault
 from rkmpc.sim.scenario import Scenario, vehicle_preset
@@ -83,7 +84,7 @@ def drive(
     The controller gets the vehicle preset's options for it
     (:attr:`rkmpc.sim.scenario.VehiclePreset.controller_options`), overridden
     by ``controller_options``. The log's metadata records the controller,
-    seed and fault.
+    seed, fault and the scenario's contract (car, period, track scale).
     """
     preset = vehicle_preset(scenario.vehicle_name).options_for(spec.controller)
     options = {**preset, **(controller_options or {})}
@@ -97,7 +98,15 @@ def drive(
         SimConfig(dt=scenario.dt, laps=spec.laps),
         on_step=on_step,
     )
-    result.log.metadata.update({"controller": spec.controller, "seed": spec.seed, "fault": spec.fault})
+    result.log.metadata.update(
+        {
+            "controller": spec.controller,
+            "seed": spec.seed,
+            "fault": spec.fault,
+            # What the run was made with: data made from its log inherit it (TransitionDataset.from_log).
+            CONTRACT_KEY: scenario.provenance().to_json(),
+        }
+    )
     return result
 
 

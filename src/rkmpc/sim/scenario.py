@@ -13,6 +13,7 @@ from typing import Any
 
 from rkmpc.control.linear.lmpc import LMPCConfig
 from rkmpc.control.pure_pursuit import PurePursuitConfig
+from rkmpc.learning.contract import Provenance
 from rkmpc.track.builtin import builtin_track, list_builtin_tracks
 from rkmpc.track.loaders import load_raceline, load_track
 from rkmpc.track.reference import Reference
@@ -118,6 +119,16 @@ class Scenario:
         if self.car is not None:
             return self.car.make_plant(seed)
         return make_plant(vehicle_preset(self.vehicle_name).plant)
+
+    def provenance(self) -> Provenance:
+        """The conditions of this scenario a data set or a model must have been made with.
+
+        The car (preset name, wheelbase), the control period and the track scale; a model or data set
+        used here is checked against them (:meth:`rkmpc.learning.contract.Provenance.check`).
+        """
+        return Provenance(
+            vehicle=self.vehicle_name, dt=self.dt, wheelbase=self.vehicle.wheelbase, scale=self.track.scale
+        )
 
     def describe(self) -> dict[str, object]:
         """A JSON-ready description for result files."""

@@ -172,7 +172,12 @@ def data_job(cfg: DataStudyConfig, controller: str, size: int, seed: int) -> dic
     model = recipe.default_model(seed, cfg.epochs)
     augment = AugmentConfig(ratio=ratio, n_points=cfg.n_points, seed=seed)
     t1 = time.perf_counter()
-    fitted, report = train_model(data, scenario.vehicle.wheelbase, TrainConfig(recipe.kind, augment, model))
+    fitted, report = train_model(
+        data,
+        scenario.vehicle.wheelbase,
+        TrainConfig(recipe.kind, augment, model),
+        vehicle=scenario.vehicle_name,
+    )
     t_train = time.perf_counter() - t1
     t2 = time.perf_counter()
     _, metrics = run_controller(

@@ -14,8 +14,10 @@ from typing import Any
 
 import numpy as np
 
+from rkmpc.core.errors import ParameterError
 from rkmpc.core.jsonutil import json_default
 from rkmpc.core.observation import OBSERVATION_FIELDS
+from rkmpc.learning.contract import CONTRACT_KEY, Provenance
 
 __all__ = [
     "COMMAND_FIELDS",
@@ -26,6 +28,7 @@ __all__ = [
     "REQUIRED_OBSERVATION_FIELDS",
     "Problem",
     "check_arrays",
+    "check_metadata_contract",
     "check_metadata_dt",
     "check_units",
     "float_array",
@@ -178,6 +181,18 @@ def check_metadata_dt(metadata: dict[str, Any], dt: float) -> None:
         raise Problem("metadata.dt", f"must be a number, got {metadata['dt']!r}") from None
     if not math.isclose(meta_dt, dt, rel_tol=DT_RTOL, abs_tol=0.0):
         raise Problem("dt", f"dt = {dt!r} s but the metadata says {meta_dt!r} s")
+
+
+def check_metadata_contract(metadata: dict[str, Any], dt: float) -> None:
+    """The contract in ``metadata`` (``CONTRACT_KEY``), if any: valid and agreeing on ``dt``."""
+    if CONTRACT_KEY not in metadata:
+        return
+    try:
+        contract = Provenance.from_json(metadata[CONTRACT_KEY])
+    except ParameterError as exc:
+        raise Problem(f"metadata.{CONTRACT_KEY}", str(exc)) from None
+    if contract.dt is not None and not math.isclose(contract.dt, dt, rel_tol=DT_RTOL, abs_tol=0.0):
+        raise Problem(f"metadata.{CONTRACT_KEY}.dt", f"dt = {dt!r} s but the contract says {contract.dt!r} s")
 
 
 def check_units(obs: np.ndarray, command: np.ndarray, next_obs: np.ndarray) -> None:

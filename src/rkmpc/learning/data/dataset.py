@@ -21,11 +21,12 @@ problem. The checks of the arrays and metadata live in
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Protocol
 
@@ -35,6 +36,7 @@ from rkmpc.core.errors import InputFileError, ParameterError
 from rkmpc.core.io import atomic_write, read_npz
 from rkmpc.core.jsonutil import json_default
 from rkmpc.core.observation import OBSERVATION_FIELDS
+from rkmpc.learning.contract import CONTRACT_KEY, Provenance, contract_of
 from rkmpc.learning.data.checks import (
     COMMAND_FIELDS,
     DT_RTOL,
@@ -42,6 +44,7 @@ from rkmpc.learning.data.checks import (
     REQUIRED_OBSERVATION_FIELDS,
     Problem,
     check_arrays,
+    check_metadata_contract,
     check_metadata_dt,
     check_units,
     plain_json,
@@ -97,7 +100,8 @@ class TransitionDataset:
     metadata : dict, optional
         JSON-able description (vehicle, track, scale, dt, seed, controller,
         laps, rkmpc version, source). When it holds ``"dt"``, that must equal
-        ``dt``.
+        ``dt``; when it holds a contract (:data:`rkmpc.learning.contract.CONTRACT_KEY`,
+        see :meth:`with_contract`), that must be valid and agree on ``dt``.
 
     Raises
     ------
@@ -119,6 +123,7 @@ class TransitionDataset:
             )
             metadata = plain_json(self.metadata)
             check_metadata_dt(metadata, dt)
+            check_metadata_contract(metadata, dt)
         except Problem as exc:
             raise ParameterError(f"TransitionDataset.{exc.field}: {exc.problem}") from None
         for array in (obs, command, next_obs, episode):
@@ -146,6 +151,32 @@ class TransitionDataset:
     def next_poses(self) -> np.ndarray:
         """Poses at the end of each step, ``[x, y, yaw]`` (m, m, rad), shape (N, 3)."""
         return self.next_obs[:, :3]
+
+    @property
+    def contract(self) -> Provenance:
+        """The car, period, track scale and state ranges the data were recorded with.
+
+        A data set written before contracts knows only its ``dt``
+        (``Provenance.recorded`` is False; checking it warns, never refuses).
+        """
+        return contract_of(self.metadata, dt=self.dt)
+
+    def with_contract(self, made_with: Provenance) -> TransitionDataset:
+        """The same data with ``made_with`` (car, scale) and the data's ``dt`` and ranges as its contract.
+
+        The ranges are those of every observation field the data measure
+        (:data:`~rkmpc.core.observation.OBSERVATION_FIELDS`, in ``obs`` and ``next_obs``).
+        """
+        states = np.concatenate([self.obs, self.next_obs])
+        contract = replace(made_with, dt=self.dt, recorded=True).with_ranges(OBSERVATION_FIELDS, states)
+        return TransitionDataset(
+            obs=self.obs,
+            command=self.command,
+            next_obs=self.next_obs,
+            dt=self.dt,
+            episode=self.episode,
+            metadata={**self.metadata, CONTRACT_KEY: contract.to_json()},
+        )
 
     def content_hash(self) -> str:
         """SHA-256 (hex) of the arrays' bytes and ``dt``; metadata is not included."""
@@ -227,7 +258,7 @@ class TransitionDataset:
             meta.update(metadata)
         meta["dt"] = dt
         meta.setdefault("source", "log")
-        return cls(
+        data = cls(
             obs=obs_all[rows],
             command=cmd_all[rows],
             next_obs=obs_all[rows + 1],
@@ -235,6 +266,8 @@ class TransitionDataset:
             episode=episode,
             metadata=meta,
         )
+        # A run's log records the car, period and scale (rkmpc.sim.run.drive): add the data's ranges.
+        return data.with_contract(data.contract) if data.contract.recorded else data
 
     @classmethod
     def concatenate(cls, parts: Sequence[TransitionDataset]) -> TransitionDataset:
@@ -249,7 +282,8 @@ class TransitionDataset:
         -------
         TransitionDataset
             Metadata ``{"source": "concatenate", "dt": dt, "parts": [...]}``
-            with the parts' metadata in order.
+            with the parts' metadata in order and, when every part has a contract,
+            their merged contract (:meth:`rkmpc.learning.contract.Provenance.merged`).
         """
         if len(parts) == 0:
             raise ParameterError("TransitionDataset.concatenate: no data sets given")
@@ -265,13 +299,17 @@ class TransitionDataset:
             _, local = np.unique(part.episode, return_inverse=True)
             episodes.append(local.astype(np.int64) + offset)
             offset += int(local.max()) + 1 if local.size else 0
+        metadata: dict[str, Any] = {"source": "concatenate", "dt": dt, "parts": [p.metadata for p in parts]}
+        contracts = [part.contract for part in parts]
+        if all(c.recorded for c in contracts):
+            metadata[CONTRACT_KEY] = functools.reduce(Provenance.merged, contracts).to_json()
         return cls(
             obs=np.concatenate([p.obs for p in parts]),
             command=np.concatenate([p.command for p in parts]),
             next_obs=np.concatenate([p.next_obs for p in parts]),
             dt=dt,
             episode=np.concatenate(episodes),
-            metadata={"source": "concatenate", "dt": dt, "parts": [p.metadata for p in parts]},
+            metadata=metadata,
         )
 
     # ------------------------------------------------------------------ files
@@ -359,6 +397,7 @@ class TransitionDataset:
                 contents["obs"], contents["command"], contents["next_obs"], dt_arr, contents["episode"]
             )
             check_metadata_dt(metadata, dt)
+            check_metadata_contract(metadata, dt)
             check_units(obs, command, next_obs)
         except Problem as exc:
             raise InputFileError(path, exc.problem, exc.field) from None
