@@ -214,7 +214,7 @@ def compare(
             logs[label] = result.log
         if on_run is not None:
             on_run(label, result)
-        return ControllerRun(metrics=metrics, outcome=result.outcome), metrics
+        return ControllerRun(metrics=metrics, outcome=result.outcome, failure=result.failure), metrics
 
     for name in config.controllers:
         if say is not None:
