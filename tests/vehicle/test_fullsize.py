@@ -190,7 +190,7 @@ def test_integration_failure_raises_plant_integration_error(monkeypatch) -> None
     plant.reset(0.0, 0.0, 0.0, 10.0)
     monkeypatch.setattr(plant, "_rhs", lambda t, s, v, d: [math.nan] * len(s))
     before = plant.state
-    with pytest.raises(PlantIntegrationError, match="LSODA.*BDF.*Radau") as info:
+    with pytest.raises(PlantIntegrationError, match=r"LSODA.*BDF.*Radau") as info:
         plant.step(Command(10.0, 0.0), 0.05)
     assert info.value.time == 0.0
     # Nothing was advanced.
