@@ -11,7 +11,7 @@ lap with the fault and the effect is classified (:func:`fault_effect`).
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass
 from typing import Any
 
 from rkmpc.analysis.metrics import LapMetrics
@@ -147,7 +147,7 @@ class CompareConfig:
         )
 
     def residual_config(self, controller: str) -> ResidualMPCConfig:
-        """The residual MPC settings of ``rkmpc`` or ``rkmpc-paper``: given here, else the vehicle preset's."""
+        """The residual MPC settings of ``rkmpc`` or ``rkmpc-paper``: given here, else the preset's."""
         given, default = {
             "rkmpc": (self.rkmpc, RKMPC_CONFIG),
             "rkmpc-paper": (self.rkmpc_paper, RKMPC_PAPER_CONFIG),
