@@ -5,10 +5,11 @@ import pytest
 
 from rkmpc.analysis.metrics import METRIC_KEYS, lap_metrics
 from rkmpc.control.base import Controller
-from rkmpc.core.errors import ParameterError
+from rkmpc.core.errors import ParameterError, PlantIntegrationError
 from rkmpc.core.observation import Command, Observation
 from rkmpc.sim.closed_loop import SimConfig, simulate
 from rkmpc.sim.log import StepLog
+from rkmpc.vehicle.plants.dynamic import DynamicPlant
 from rkmpc.vehicle.registry import make_plant
 
 
@@ -105,3 +106,45 @@ def test_sim_config_validation():
     with pytest.raises(ParameterError):
         SimConfig(laps=0)
     assert math.isclose(SimConfig().dt, 0.05)
+
+
+class FailingPlant(DynamicPlant):
+    """The 1:10 plant, except that its integration fails from ``fail_at`` seconds on."""
+
+    def __init__(self, fail_at: float) -> None:
+        self.fail_at = fail_at
+        super().__init__()
+
+    def _advance(self, duration, setpoint):
+        if self.time >= self.fail_at:
+            raise PlantIntegrationError(f"fake integration failure at t={self.time:.2f} s", self.time)
+        super()._advance(duration, setpoint)
+
+
+def test_plant_failure_is_an_outcome_with_its_message(builtin_scenario):
+    from rkmpc.control import make_controller
+
+    sc = builtin_scenario
+    controller = make_controller("lmpc", sc.reference, sc.vehicle)
+    result = simulate(FailingPlant(fail_at=2.0), controller, sc.track, sc.reference, SimConfig())
+    assert result.outcome == "plant_failure"
+    assert not result.completed
+    assert result.failure == "fake integration failure at t=2.00 s"
+    assert result.log.metadata["failure"] == result.failure
+    assert result.log.metadata["outcome"] == "plant_failure"
+    # The run stopped at the failing step, part of the way round, with every step before it logged.
+    assert result.log["t"][-1] == pytest.approx(2.0)
+    assert len(result.log) == 41
+    assert 0.0 < result.progress < 1.0
+    metrics = lap_metrics(result)
+    assert metrics["completed"] is False
+    assert metrics["lateral_error_mean_m"] is not None
+
+
+def test_a_run_that_ends_normally_records_no_failure(builtin_scenario):
+    sc = builtin_scenario
+    result = simulate(
+        make_plant("f1tenth"), ConstantSteer(1.0, 0.0), sc.track, sc.reference, SimConfig(max_time=0.5)
+    )
+    assert result.failure is None
+    assert result.log.metadata["failure"] is None

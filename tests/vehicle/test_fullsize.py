@@ -117,3 +117,82 @@ def test_mass_and_grip_scale() -> None:
     for bad in ({"mass_scale": 0.0}, {"grip_scale": math.nan}):
         with pytest.raises(ParameterError):
             FullSizePlant(**bad)
+
+
+#: The state at which LSODA gave up under the LMPC on Catalunya (t = 95.35 s): the car has spun
+#: (side slip -2.3 rad, sliding backwards along its heading), front wheel locked at the model's
+#: clamp omega >= 0, rear wheel nearly so.
+_SPUN_STATE = [
+    -669.5077641206426,
+    -589.8521595334522,
+    -0.6829065469085316,
+    14.950332261535598,
+    -5.3095074669321,
+    1.9436405314261367,
+    -2.3159149212855437,
+    0.0,
+    0.029131979061440754,
+]
+_SPUN_COMMAND = Command(speed=11.975426594736195, steer=-0.7409786875319553)
+
+
+def _spun_plant() -> FullSizePlant:
+    plant = FullSizePlant()
+    plant.reset(_SPUN_STATE[0], _SPUN_STATE[1], _SPUN_STATE[4], 12.462416916427397, -0.7209786875319553)
+    plant._s = np.array(_SPUN_STATE)
+    return plant
+
+
+def test_lsoda_alone_fails_on_the_spun_car() -> None:
+    """The condition of the Catalunya failure: LSODA alone cannot integrate one period from it."""
+    import warnings
+
+    from scipy.integrate import solve_ivp
+
+    plant = _spun_plant()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        solution = solve_ivp(
+            plant._rhs,
+            (0.0, 0.05),
+            np.array(_SPUN_STATE),
+            method="LSODA",
+            args=(_SPUN_COMMAND.speed, _SPUN_COMMAND.steer),
+            rtol=1e-6,
+            atol=1e-6,
+            max_step=1e-3,
+            first_step=1e-3,
+        )
+    assert not solution.success
+
+
+def test_spun_car_steps_on_with_a_fallback_integrator() -> None:
+    plant = _spun_plant()
+    for _ in range(6):
+        plant.step(_SPUN_COMMAND, 0.05)
+    assert plant.time == pytest.approx(0.3)
+    assert plant.fallback_steps >= 1
+    state = plant.state
+    assert np.isfinite(state).all()
+    # Still sliding, wheel speeds inside the model's range.
+    assert abs(state[6]) > math.pi / 2
+    assert state[7] >= 0.0 and state[8] >= 0.0
+    # The car kept moving from where it was (no jump).
+    assert 1.0 < math.hypot(state[0] - _SPUN_STATE[0], state[1] - _SPUN_STATE[1]) < 10.0
+    plant.reset(0.0, 0.0, 0.0, 10.0)
+    assert plant.fallback_steps == 0
+
+
+def test_integration_failure_raises_plant_integration_error(monkeypatch) -> None:
+    from rkmpc.core.errors import PlantIntegrationError
+
+    plant = FullSizePlant()
+    plant.reset(0.0, 0.0, 0.0, 10.0)
+    monkeypatch.setattr(plant, "_rhs", lambda t, s, v, d: [math.nan] * len(s))
+    before = plant.state
+    with pytest.raises(PlantIntegrationError, match=r"LSODA.*BDF.*Radau") as info:
+        plant.step(Command(10.0, 0.0), 0.05)
+    assert info.value.time == 0.0
+    # Nothing was advanced.
+    assert plant.time == 0.0
+    np.testing.assert_array_equal(plant.state, before)

@@ -59,3 +59,22 @@ class ContractError(RkmpcError, ValueError):
 
 class ContractWarning(UserWarning):
     """A data set or a model used, on request, with another car, period or scale than it was made with."""
+
+
+class PlantIntegrationError(RkmpcError, RuntimeError):
+    """A simulated car could not integrate its dynamics over a step.
+
+    The closed loop (:func:`rkmpc.sim.closed_loop.simulate`) ends the run with the outcome
+    ``"plant_failure"`` and records the message, rather than letting it end a comparison.
+
+    Parameters
+    ----------
+    message : str
+        What failed, where and when.
+    time : float
+        Simulation time (s) at the start of the step that failed.
+    """
+
+    def __init__(self, message: str, time: float) -> None:
+        self.time = float(time)
+        super().__init__(message)

@@ -11,7 +11,7 @@ lap with the fault and the effect is classified (:func:`fault_effect`).
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass
 from typing import Any
 
 from rkmpc.analysis.metrics import LapMetrics
@@ -26,7 +26,7 @@ from rkmpc.sim.closed_loop import SimResult
 from rkmpc.sim.faults import DEFAULT_NOISE, get_fault
 from rkmpc.sim.log import StepLog
 from rkmpc.sim.run import RunSpec, run_record
-from rkmpc.sim.scenario import Scenario, load_scenario
+from rkmpc.sim.scenario import Scenario, load_scenario, vehicle_preset
 from rkmpc.vehicle.zoo import get_car
 
 __all__ = [
@@ -44,7 +44,8 @@ LEARNED_CONTROLLERS = ("lmpc", "lmpc-id", "rkmpc-paper", "rkmpc", "kmpc")
 #: Every controller of the paper's comparison plus the extra baselines, in table order.
 ALL_CONTROLLERS = ("pp", "lmpc", "lmpc-id", "nmpc", "nmpc-dynamic", "kmpc", "rkmpc-paper", "rkmpc")
 
-#: Residual MPC settings of the two RKMPC variants (tuned on builtin, Monza and Budapest, then fixed).
+#: Residual MPC settings of the two RKMPC variants for the 1:10 car (tuned on builtin, Monza and
+#: Budapest, then fixed); other cars take theirs from their preset (:data:`rkmpc.sim.scenario.VEHICLES`).
 RKMPC_CONFIG = ResidualKoopmanMPC.default_config
 RKMPC_PAPER_CONFIG = PaperResidualKoopmanMPC.default_config
 
@@ -73,10 +74,10 @@ class CompareConfig:
     kmpc_model : str or None
         Path of a trained ``koopman`` model for ``kmpc``; when None it is
         trained on ``kmpc_samples`` random-excitation samples (cached).
-    rkmpc : ResidualMPCConfig
-        Residual MPC settings of ``rkmpc``.
-    rkmpc_paper : ResidualMPCConfig
-        Residual MPC settings of ``rkmpc-paper``.
+    rkmpc : ResidualMPCConfig or None
+        Residual MPC settings of ``rkmpc``; None for the vehicle preset's.
+    rkmpc_paper : ResidualMPCConfig or None
+        Residual MPC settings of ``rkmpc-paper``; None for the vehicle preset's.
     raceline : str or None
         Race-line CSV to track instead of the centre line.
     fault : str or None
@@ -113,8 +114,8 @@ class CompareConfig:
     laps: int = 2
     seed: int = 0
     kmpc_model: str | None = None
-    rkmpc: ResidualMPCConfig = field(default_factory=lambda: RKMPC_CONFIG)
-    rkmpc_paper: ResidualMPCConfig = field(default_factory=lambda: RKMPC_PAPER_CONFIG)
+    rkmpc: ResidualMPCConfig | None = None
+    rkmpc_paper: ResidualMPCConfig | None = None
     raceline: str | None = None
     fault: str | None = None
     kmpc_samples: int = 50_000
@@ -157,6 +158,18 @@ class CompareConfig:
             epochs=self.epochs,
             allow_mismatch=self.allow_mismatch,
         )
+
+    def residual_config(self, controller: str) -> ResidualMPCConfig:
+        """The residual MPC settings of ``rkmpc`` or ``rkmpc-paper``: given here, else the preset's."""
+        given, default = {
+            "rkmpc": (self.rkmpc, RKMPC_CONFIG),
+            "rkmpc-paper": (self.rkmpc_paper, RKMPC_PAPER_CONFIG),
+        }[controller]
+        if given is not None:
+            return given
+        preset = vehicle_preset(self.vehicle).options_for(controller)
+        tuned: ResidualMPCConfig = preset["config"] if "config" in preset else default
+        return tuned
 
     def scenario(self) -> Scenario:
         """The track, car and reference of the comparison."""
@@ -210,7 +223,7 @@ def compare(
     """
     scenario = config.scenario()
     options, training = learn_models(scenario, config.plan(), say=say)
-    residual = {"rkmpc": config.rkmpc, "rkmpc-paper": config.rkmpc_paper}
+    residual = {name: config.residual_config(name) for name in ("rkmpc", "rkmpc-paper")}
     for name, cfg in residual.items():
         if name in options:
             options[name]["config"] = cfg
@@ -232,7 +245,7 @@ def compare(
             logs[label] = result.log
         if on_run is not None:
             on_run(label, result)
-        return ControllerRun(metrics=metrics, outcome=result.outcome), metrics
+        return ControllerRun(metrics=metrics, outcome=result.outcome, failure=result.failure), metrics
 
     for name in config.controllers:
         if say is not None:
@@ -246,8 +259,8 @@ def compare(
         **run_record(scenario, specs),
         "seed": config.seed,
         "laps_of_data": config.laps,
-        "rkmpc": asdict(config.rkmpc),
-        "rkmpc_paper": asdict(config.rkmpc_paper),
+        "rkmpc": asdict(residual["rkmpc"]),
+        "rkmpc_paper": asdict(residual["rkmpc-paper"]),
         "kmpc_model": config.kmpc_model,
         "kmpc_samples": config.kmpc_samples,
         "fault": config.fault,

@@ -29,7 +29,7 @@ from rkmpc.learning.io import load_model
 from rkmpc.learning.koopman.model import KoopmanModel
 from rkmpc.learning.pipeline import TrainConfig, TrainReport, train_model
 from rkmpc.learning.recipes import RECIPES, Recipe, recipe_for
-from rkmpc.sim.collect import collect, collect_excitation
+from rkmpc.sim.collect import collect, collect_excitation, excitation_lateral_accel
 from rkmpc.sim.scenario import Scenario, vehicle_preset
 
 __all__ = ["ModelPlan", "learn_models", "train_excitation_model", "train_track_model"]
@@ -100,6 +100,7 @@ def train_excitation_model(
         "vehicle_params": asdict(scenario.vehicle),
         "plant": vehicle_preset(scenario.vehicle_name).plant,
         "speed_range": [scenario.limits.min_speed, scenario.limits.max_speed],
+        "lateral_accel": excitation_lateral_accel(scenario),
         "dt": scenario.dt,
         "samples": samples,
         "seed": seed,

@@ -22,13 +22,24 @@ __all__ = ["ControllerRun", "DataRecord", "FaultOutcome", "ModelRecord", "TrackR
 
 @dataclass(frozen=True)
 class ControllerRun:
-    """One controller's run: its lap metrics and how the run ended (``completed``, ``off_track``...)."""
+    """One controller's run: its lap metrics and how the run ended (``completed``, ``off_track``...).
+
+    Parameters
+    ----------
+    metrics : LapMetrics
+        The lap metrics.
+    outcome : str
+        How the run ended (:data:`rkmpc.sim.closed_loop.OUTCOMES`).
+    failure : str or None
+        The plant's message when ``outcome`` is ``"plant_failure"``, else None.
+    """
 
     metrics: LapMetrics
     outcome: str
+    failure: str | None = None
 
     def to_json(self) -> dict[str, Any]:
-        return {**self.metrics.to_json(), "outcome": self.outcome}
+        return {**self.metrics.to_json(), "outcome": self.outcome, "failure": self.failure}
 
 
 @dataclass(frozen=True)

@@ -10,7 +10,7 @@ import numpy as np
 
 from rkmpc.control.base import Controller
 from rkmpc.core.angles import wrap_scalar
-from rkmpc.core.errors import ParameterError
+from rkmpc.core.errors import ParameterError, PlantIntegrationError
 from rkmpc.core.observation import OBSERVATION_FIELDS, Command, Observation
 from rkmpc.sim.log import StepLog
 from rkmpc.track.path import Path, Projection
@@ -18,8 +18,9 @@ from rkmpc.track.reference import Reference
 from rkmpc.track.track import Track
 from rkmpc.vehicle.plants.base import Plant
 
-#: Ways a run can end.
-OUTCOMES = ("completed", "off_track", "timeout", "diverged")
+#: Ways a run can end (``"plant_failure"``: the plant could not integrate a step, see
+#: :class:`rkmpc.core.errors.PlantIntegrationError`; the message is in :attr:`SimResult.failure`).
+OUTCOMES = ("completed", "off_track", "timeout", "diverged", "plant_failure")
 
 _STATUS_CODES = {"ok": 0.0, "fallback": 1.0}
 
@@ -79,6 +80,8 @@ class SimResult:
         Length of one lap of the reference path (m).
     diagnostics : dict of str to float
         The controller's own counts at the end (:meth:`rkmpc.control.base.Controller.diagnostics`).
+    failure : str or None
+        Why the plant failed when ``outcome`` is ``"plant_failure"``, else None.
     """
 
     log: StepLog
@@ -88,6 +91,7 @@ class SimResult:
     lap_times: list[float] = field(default_factory=list)
     fallback_count: int = 0
     diagnostics: dict[str, float] = field(default_factory=dict)
+    failure: str | None = None
 
     @property
     def completed(self) -> bool:
@@ -132,7 +136,10 @@ def simulate(
 
     The run ends when the requested laps are driven, when the car's centre of
     gravity leaves the track (``"off_track"``, never an exception), when the
-    state turns non-finite (``"diverged"``) or at the time limit.
+    state turns non-finite (``"diverged"``), when the plant cannot integrate a
+    step (``"plant_failure"``: a :class:`~rkmpc.core.errors.PlantIntegrationError`
+    is caught, its message kept in :attr:`SimResult.failure` and the log's
+    metadata) or at the time limit.
 
     Parameters
     ----------
@@ -167,6 +174,7 @@ def simulate(
     laps = _LapCounter(reference.path, s0, cfg.dt)
     s_track: float | None = None
     outcome = "timeout"
+    failure: str | None = None
     for _ in range(max_steps):
         obs = plant.observe()
         t = plant.time
@@ -190,7 +198,11 @@ def simulate(
         if command is None:
             outcome = "off_track"
             break
-        plant.step(command, cfg.dt)
+        try:
+            plant.step(command, cfg.dt)
+        except PlantIntegrationError as exc:
+            outcome, failure = "plant_failure", str(exc)
+            break
         if on_step is not None:
             on_step(t, laps.progress / length)
     lap_times = list(np.diff([0.0, *laps.crossings]).astype(float)) if laps.crossings else []
@@ -198,6 +210,7 @@ def simulate(
     log.metadata["lap_times"] = lap_times
     diagnostics = controller.diagnostics()
     log.metadata["diagnostics"] = diagnostics
+    log.metadata["failure"] = failure
     return SimResult(
         log=log,
         outcome=outcome,
@@ -206,6 +219,7 @@ def simulate(
         lap_times=lap_times,
         fallback_count=controller.fallback_count,
         diagnostics=diagnostics,
+        failure=failure,
     )
 
 

@@ -79,11 +79,21 @@ def collect(
     return TransitionDataset.from_log(result.log, metadata=metadata, dt=scenario.dt)
 
 
+def excitation_lateral_accel(scenario: Scenario) -> float:
+    """Largest lateral acceleration (m/s^2) the random excitation asks of the scenario's car.
+
+    Twice the speed profile's lateral limit (the excitation explores beyond what the track asks),
+    at most the road's grip ``mu g``: 8 m/s^2 for the 1:10 car, 9.81 m/s^2 for the full-size car.
+    """
+    return min(2.0 * scenario.limits.lateral_accel, scenario.vehicle.mu * scenario.vehicle.gravity)
+
+
 def collect_excitation(scenario: Scenario, *, n_samples: int = 50_000, seed: int = 0) -> TransitionDataset:
     """Random-excitation transitions of the scenario's car in open space (for KMPC).
 
-    Speeds are drawn within the scenario's speed limits and wheel angles within
-    90 % of the steering limit; see :mod:`rkmpc.learning.data.excitation`.
+    Speeds are drawn within the scenario's speed limits, wheel angles within
+    90 % of the steering limit and the lateral acceleration they ask for within
+    :func:`excitation_lateral_accel`; see :mod:`rkmpc.learning.data.excitation`.
 
     Parameters
     ----------
@@ -97,6 +107,7 @@ def collect_excitation(scenario: Scenario, *, n_samples: int = 50_000, seed: int
     config = ExcitationConfig(
         n_samples=n_samples,
         speed_range=(scenario.limits.min_speed, scenario.limits.max_speed),
+        max_lateral_accel=excitation_lateral_accel(scenario),
         seed=seed,
     )
     plant = scenario.make_plant(seed)

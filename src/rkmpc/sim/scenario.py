@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from rkmpc.control.learned.rkmpc import PaperResidualKoopmanMPC, ResidualKoopmanMPC, ResidualMPCConfig
 from rkmpc.control.linear.lmpc import LMPCConfig
 from rkmpc.control.pure_pursuit import PurePursuitConfig
 from rkmpc.learning.contract import Provenance
@@ -55,27 +56,69 @@ class VehiclePreset:
         return dict(self.controller_options[controller]) if controller in self.controller_options else {}
 
 
+def mpc_options(
+    lmpc: LMPCConfig, rkmpc: ResidualMPCConfig, rkmpc_paper: ResidualMPCConfig
+) -> dict[str, dict[str, Any]]:
+    """Options of every controller built on the linear MPC, all on one tuned LMPC.
+
+    ``lmpc-id`` and ``kmpc`` take the LMPC's weights and horizon; ``rkmpc`` and ``rkmpc-paper``
+    take it as their baseline (``lmpc_config``) beside their residual settings.
+    """
+    return {
+        "lmpc": {"config": lmpc},
+        "lmpc-id": {"config": lmpc},
+        "kmpc": {"config": lmpc},
+        "rkmpc": {"config": rkmpc, "lmpc_config": lmpc},
+        "rkmpc-paper": {"config": rkmpc_paper, "lmpc_config": lmpc},
+    }
+
+
+#: Speed-profile limits of the 1:10 car, the car the controllers' defaults were tuned for.
+F1TENTH_LIMITS = SpeedLimits(
+    lateral_accel=4.0, brake_decel=2.5, accel=2.5, max_speed=3.5, min_speed=0.5, curvature_rate=1.0
+)
+FULLSIZE_LIMITS = SpeedLimits(
+    lateral_accel=6.0, brake_decel=3.0, accel=2.0, max_speed=25.0, min_speed=2.0, curvature_rate=0.05
+)
+
+
+def residual_settings(
+    params: VehicleParams, limits: SpeedLimits
+) -> tuple[ResidualMPCConfig, ResidualMPCConfig]:
+    """The residual MPC settings of ``rkmpc`` and ``rkmpc-paper`` for a car, from the 1:10 car's.
+
+    :meth:`ResidualMPCConfig.scaled` with the ratios of the wheelbase and of the speed profile's
+    top speed to the 1:10 car's; for the 1:10 car itself, the controllers' defaults unchanged.
+    """
+    length = params.wheelbase / f1tenth().wheelbase
+    speed = limits.max_speed / F1TENTH_LIMITS.max_speed
+    return (
+        ResidualKoopmanMPC.default_config.scaled(length, speed),
+        PaperResidualKoopmanMPC.default_config.scaled(length, speed),
+    )
+
+
+# Position errors are ten times larger than at 1:10 while wheel angles are alike, so the steering
+# weights grow by about a hundred (tuned on the LMPC, shared by every controller built on it).
+_FULLSIZE_LMPC = LMPCConfig(steer_weight=200.0, steer_rate_weight=100.0)
+
 #: Vehicle presets by name.
 VEHICLES: dict[str, VehiclePreset] = {
     "f1tenth": VehiclePreset(
         params=f1tenth,
         plant="f1tenth",
-        limits=SpeedLimits(
-            lateral_accel=4.0, brake_decel=2.5, accel=2.5, max_speed=3.5, min_speed=0.5, curvature_rate=1.0
-        ),
+        limits=F1TENTH_LIMITS,
         file_scale=0.1,
+        controller_options=mpc_options(LMPCConfig(), *residual_settings(f1tenth(), F1TENTH_LIMITS)),
     ),
     "fullsize": VehiclePreset(
         params=fullsize,
         plant="fullsize",
-        limits=SpeedLimits(
-            lateral_accel=6.0, brake_decel=3.0, accel=2.0, max_speed=25.0, min_speed=2.0, curvature_rate=0.05
-        ),
+        limits=FULLSIZE_LIMITS,
         file_scale=1.0,
-        # Position errors are ten times larger than at 1:10 while wheel angles are alike,
-        # so the steering weights grow by about a hundred; the look-ahead grows with speed.
+        # The look-ahead of pure pursuit grows with speed.
         controller_options={
-            "lmpc": {"config": LMPCConfig(steer_weight=200.0, steer_rate_weight=100.0)},
+            **mpc_options(_FULLSIZE_LMPC, *residual_settings(fullsize(), FULLSIZE_LIMITS)),
             "pp": {"config": PurePursuitConfig(min_lookahead=3.0, lookahead_gain=0.8, max_lookahead=40.0)},
         },
     ),

@@ -30,7 +30,7 @@ changes.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -49,7 +49,7 @@ from rkmpc.control.linear.lmpc import LinearMPC, LMPCConfig, Prediction
 from rkmpc.control.qp import make_qp
 from rkmpc.core.errors import ParameterError
 from rkmpc.core.observation import Command, Observation
-from rkmpc.core.validation import require_nonnegative
+from rkmpc.core.validation import require_nonnegative, require_positive_value
 from rkmpc.learning.data.residuals import kinematic_inverse
 from rkmpc.learning.features import FeatureMap
 from rkmpc.vehicle.params import VehicleParams
@@ -116,6 +116,39 @@ class ResidualMPCConfig:
             raise ParameterError("ResidualMPCConfig: speed_weight and steer_weight must be > 0")
         if not (self.max_speed_correction > 0 and self.max_steer_correction > 0):
             raise ParameterError("ResidualMPCConfig: correction bounds must be > 0")
+
+    def scaled(self, length: float, speed: float) -> ResidualMPCConfig:
+        """These settings carried over to a car ``length`` times as long that drives ``speed`` times as fast.
+
+        The cost keeps its balance when every term grows like the squared position error
+        (``length**2``): wheel angles on a track of the car's size are alike, so the weight of the
+        steering correction grows with ``length**2``; speed errors grow with ``speed``, so the weight
+        of the speed correction grows with ``(length / speed)**2``. The speed correction's bound grows
+        with ``speed``; the steering bound stays (wheel angles are alike). Position and heading
+        weights, solver and iteration budget stay.
+
+        Parameters
+        ----------
+        length : float
+            Ratio (-) of the new car's wheelbase to the one these settings were tuned for, > 0.
+        speed : float
+            Ratio (-) of the new car's top speed of the speed profile to the old one's, > 0.
+
+        Returns
+        -------
+        ResidualMPCConfig
+            ``self`` itself when both ratios are 1.
+        """
+        k = require_positive_value(length, "length")
+        v = require_positive_value(speed, "speed")
+        if k == 1.0 and v == 1.0:
+            return self
+        return replace(
+            self,
+            speed_weight=self.speed_weight * (k / v) ** 2,
+            steer_weight=self.steer_weight * k**2,
+            max_speed_correction=self.max_speed_correction * v,
+        )
 
 
 class _ResidualBase(Controller):

@@ -18,6 +18,19 @@ millisecond at walking speed), so the model is integrated with SciPy's LSODA,
 which switches to an implicit method when needed, with ``internal_dt`` as the
 largest step.
 
+When the car spins (side slip beyond +-90 degrees, sliding backwards along its
+heading) the model's wheel speeds sit at its clamp ``omega >= 0`` while the
+wheels' forward speed is cut to 0, so the longitudinal slip divides by the
+model's floor of 0.1 m/s: the wheel equations become about a hundred times
+stiffer than in normal driving (time constants near 20 microseconds) and
+switch at the clamp. LSODA then fails with repeated convergence failures
+("Unexpected istate in LSODA"; seen on Catalunya under the LMPC) or crawls
+with ever smaller steps. A step LSODA cannot integrate within
+:data:`MAX_EVALUATIONS` evaluations is integrated again from the same state with the implicit BDF
+method, then Radau (:data:`INTEGRATORS`); only when all of them fail does the
+plant raise :class:`~rkmpc.core.errors.PlantIntegrationError`, which the closed
+loop records as the outcome ``"plant_failure"``.
+
 State (the package's order): ``[x, y, delta, v, yaw, yaw_rate, beta, omega_f,
 omega_r]`` -- position (m), front wheel angle (rad), speed at the centre of
 gravity (m/s), heading (rad), yaw rate (rad/s), side-slip angle (rad), front
@@ -28,6 +41,7 @@ from __future__ import annotations
 
 import copy
 import math
+import warnings
 from typing import Any
 
 import numpy as np
@@ -35,16 +49,25 @@ from scipy.integrate import solve_ivp
 from vehiclemodels.parameters_vehicle2 import parameters_vehicle2
 from vehiclemodels.vehicle_dynamics_std import vehicle_dynamics_std
 
-from rkmpc.core.errors import ParameterError
+from rkmpc.core.errors import ParameterError, PlantIntegrationError
 from rkmpc.core.observation import Observation
 from rkmpc.vehicle.friction import FrictionSchedule
 from rkmpc.vehicle.params import VehicleParams, fullsize
 from rkmpc.vehicle.plants.base import ActuatedPlant, single_track_observation
 
-__all__ = ["FullSizePlant", "fullsize"]
+__all__ = ["INTEGRATORS", "MAX_EVALUATIONS", "FullSizePlant", "fullsize"]
 
 _RTOL = 1e-6
 _ATOL = 1e-6
+
+#: SciPy methods tried in turn on each step: LSODA, then implicit fall-backs for a step it cannot do.
+INTEGRATORS = ("LSODA", "BDF", "Radau")
+#: Evaluations of the dynamics one method may spend on one integration interval before it gives up.
+MAX_EVALUATIONS = 5000
+
+
+class _TooManyEvaluations(Exception):
+    """An integration attempt used up :data:`MAX_EVALUATIONS`."""
 
 
 class FullSizePlant(ActuatedPlant):
@@ -79,6 +102,9 @@ class FullSizePlant(ActuatedPlant):
     ----------
     STATE_NAMES : tuple of str
         ``("x", "y", "delta", "v", "yaw", "yaw_rate", "beta", "omega_f", "omega_r")``.
+    fallback_steps : int
+        Integration intervals since the last reset that LSODA could not do and a fall-back
+        method of :data:`INTEGRATORS` did.
     """
 
     STATE_NAMES: tuple[str, ...] = ("x", "y", "delta", "v", "yaw", "yaw_rate", "beta", "omega_f", "omega_r")
@@ -110,6 +136,7 @@ class FullSizePlant(ActuatedPlant):
         self._nominal_dy1 = float(self._model.tire.p_dy1)
         self._applied_factor = 1.0
         self._s = np.zeros(len(self.STATE_NAMES))
+        self.fallback_steps = 0
         vehicle = fullsize() if params is None else params
         super().__init__(vehicle, internal_dt=internal_dt, input_delay=input_delay, friction=friction)
 
@@ -121,6 +148,7 @@ class FullSizePlant(ActuatedPlant):
         omega_f = speed * math.cos(beta) * math.cos(steer) / radius
         omega_r = speed * math.cos(beta) / radius
         self._s = np.array([x, y, steer, speed, yaw, yaw_rate, beta, omega_f, omega_r])
+        self.fallback_steps = 0
         self._set_friction(1.0)
 
     def _set_friction(self, factor: float) -> None:
@@ -152,24 +180,66 @@ class FullSizePlant(ActuatedPlant):
         v_cmd = min(max(setpoint[0], drive.min_speed), drive.max_speed)
         d_cmd = min(max(setpoint[1], -steering.max_angle), steering.max_angle)
         start = self._time
-        solution = solve_ivp(
-            self._rhs,
-            (start, start + duration),
-            self._s,
-            method="LSODA",
-            args=(v_cmd, d_cmd),
-            rtol=_RTOL,
-            atol=_ATOL,
-            max_step=self.internal_dt,
-            first_step=min(self.internal_dt, duration),
-        )
-        if not solution.success:
-            raise RuntimeError(f"full-size plant integration failed at t={start:.3f} s: {solution.message}")
-        state = solution.y[:, -1].copy()
+        failures: list[str] = []
+        for method in INTEGRATORS:
+            end_state, problem = self._integrate(method, start, duration, v_cmd, d_cmd)
+            if end_state is not None:
+                break
+            failures.append(f"{method}: {problem}")
+        else:
+            state_text = ", ".join(f"{n}={v:.6g}" for n, v in zip(self.STATE_NAMES, self._s, strict=True))
+            raise PlantIntegrationError(
+                f"full-size plant integration failed at t={start:.3f} s ({'; '.join(failures)}); "
+                f"state {state_text}",
+                start,
+            )
+        self.fallback_steps += int(bool(failures))
+        state = end_state
         state[3] = max(state[3], 0.0)
         state[7] = max(state[7], 0.0)
         state[8] = max(state[8], 0.0)
         self._s = state
+
+    def _integrate(
+        self, method: str, start: float, duration: float, v_cmd: float, d_cmd: float
+    ) -> tuple[np.ndarray | None, str]:
+        """The state after ``duration`` s by one SciPy method, or None and why it failed.
+
+        An attempt that needs more than :data:`MAX_EVALUATIONS` evaluations of the dynamics
+        gives up (LSODA can crawl instead of failing on a spinning car); one whose method raises
+        on a non-finite or out-of-domain value fails with that message.
+        """
+        count = 0
+
+        def rhs(t: float, s: np.ndarray) -> list[float]:
+            nonlocal count
+            count += 1
+            if count > MAX_EVALUATIONS:
+                raise _TooManyEvaluations
+            return self._rhs(t, s, v_cmd, d_cmd)
+
+        try:
+            with warnings.catch_warnings():
+                # LSODA warns before it gives up; its failure is handled by the caller.
+                warnings.simplefilter("ignore", UserWarning)
+                solution = solve_ivp(
+                    rhs,
+                    (start, start + duration),
+                    self._s,
+                    method=method,
+                    rtol=_RTOL,
+                    atol=_ATOL,
+                    max_step=self.internal_dt,
+                    first_step=min(self.internal_dt, duration),
+                )
+        except _TooManyEvaluations:
+            return None, f"more than {MAX_EVALUATIONS} evaluations"
+        except (ValueError, ArithmeticError) as exc:  # a method choking on a non-finite state
+            return None, f"{type(exc).__name__}: {exc}"
+        end = solution.y[:, -1]
+        if not solution.success or not np.isfinite(end).all():
+            return None, str(solution.message) if not solution.success else "non-finite state"
+        return end.copy(), ""
 
     def observe(self) -> Observation:
         """True observation; ``speed`` is the velocity along the heading, ``v cos(beta)``."""

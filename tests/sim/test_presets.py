@@ -1,0 +1,96 @@
+"""Car presets: one tuned LMPC under every controller built on it, residual settings scaled with the car."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from rkmpc.control import make_controller
+from rkmpc.control.learned.rkmpc import PaperResidualKoopmanMPC, ResidualKoopmanMPC, ResidualMPCConfig
+from rkmpc.control.linear.lmpc import LMPCConfig
+from rkmpc.core.errors import ParameterError
+from rkmpc.experiments.compare import CompareConfig
+from rkmpc.sim.collect import excitation_lateral_accel
+from rkmpc.sim.scenario import VEHICLES, load_scenario
+
+LMPC_BASED = ("lmpc", "lmpc-id", "kmpc", "rkmpc", "rkmpc-paper")
+
+
+def _lmpc_of(name: str, options: dict) -> LMPCConfig:
+    return options["lmpc_config"] if name.startswith("rkmpc") else options["config"]
+
+
+@pytest.mark.parametrize("vehicle", sorted(VEHICLES))
+def test_every_lmpc_based_controller_shares_the_lmpc_of_the_preset(vehicle):
+    preset = VEHICLES[vehicle]
+    lmpc = preset.options_for("lmpc")["config"]
+    for name in LMPC_BASED:
+        assert _lmpc_of(name, preset.options_for(name)) == lmpc
+
+
+def test_fullsize_lmpc_is_the_tuned_one_and_f1tenth_keeps_the_defaults():
+    assert VEHICLES["fullsize"].options_for("lmpc")["config"] == LMPCConfig(
+        steer_weight=200.0, steer_rate_weight=100.0
+    )
+    f1tenth = VEHICLES["f1tenth"]
+    assert f1tenth.options_for("lmpc")["config"] == LMPCConfig()
+    # The 1:10 car's residual settings are the controllers' own defaults, the very objects.
+    assert f1tenth.options_for("rkmpc")["config"] is ResidualKoopmanMPC.default_config
+    assert f1tenth.options_for("rkmpc-paper")["config"] is PaperResidualKoopmanMPC.default_config
+
+
+def test_fullsize_residual_settings_grow_with_the_car():
+    small = VEHICLES["f1tenth"].options_for("rkmpc")["config"]
+    large = VEHICLES["fullsize"].options_for("rkmpc")["config"]
+    assert large.max_speed_correction > 5.0 * small.max_speed_correction
+    assert large.steer_weight > 50.0 * small.steer_weight
+    assert large.position_weight == small.position_weight
+
+
+def test_scaled_by_one_is_the_same_settings_and_otherwise_by_the_rules():
+    base = ResidualMPCConfig()
+    assert base.scaled(1.0, 1.0) is base
+    big = base.scaled(2.0, 4.0)
+    assert big.steer_weight == pytest.approx(4.0 * base.steer_weight)
+    assert big.speed_weight == pytest.approx(base.speed_weight / 4.0)
+    assert big.max_speed_correction == pytest.approx(4.0 * base.max_speed_correction)
+    assert big.max_steer_correction == base.max_steer_correction
+    with pytest.raises(ParameterError):
+        base.scaled(0.0, 1.0)
+
+
+def _identity_model():
+    """A lifted model whose nominal input is the command itself (``U_p = U``)."""
+    return SimpleNamespace(
+        A_=np.eye(3), B_=np.zeros((3, 2)), C_=np.zeros((2, 3)), D_=np.eye(2), lift=lambda x: np.asarray(x)
+    )
+
+
+def test_rkmpc_on_the_fullsize_car_drives_on_the_tuned_lmpc():
+    sc = load_scenario("builtin", vehicle="fullsize")
+    preset = VEHICLES["fullsize"]
+    controller = make_controller(
+        "rkmpc", sc.reference, sc.vehicle, **preset.options_for("rkmpc"), model=_identity_model()
+    )
+    assert controller.lmpc.config == preset.options_for("lmpc")["config"]
+    assert controller.config == preset.options_for("rkmpc")["config"]
+
+
+def test_compare_takes_the_residual_settings_of_the_car_unless_given():
+    fullsize = CompareConfig(track="builtin", vehicle="fullsize")
+    assert fullsize.residual_config("rkmpc") == VEHICLES["fullsize"].options_for("rkmpc")["config"]
+    assert (
+        fullsize.residual_config("rkmpc-paper") == VEHICLES["fullsize"].options_for("rkmpc-paper")["config"]
+    )
+    given = ResidualMPCConfig(max_speed_correction=2.0)
+    assert CompareConfig(track="builtin", vehicle="fullsize", rkmpc=given).residual_config("rkmpc") is given
+    small = CompareConfig(track="builtin")
+    assert small.residual_config("rkmpc") is ResidualKoopmanMPC.default_config
+
+
+def test_excitation_asks_twice_the_profile_limit_at_most_the_grip():
+    assert excitation_lateral_accel(load_scenario("builtin")) == 8.0
+    full = load_scenario("builtin", vehicle="fullsize")
+    assert excitation_lateral_accel(full) == pytest.approx(full.vehicle.mu * full.vehicle.gravity)
