@@ -1,4 +1,4 @@
-"""Command line: ``rkmpc run | compare | collect | train | tracks | study tracks | study data``.
+"""Command line: ``rkmpc run | compare | collect | train | tracks | study tracks | cars | data``.
 
 This module only parses arguments and dispatches to the library; what each
 command computes and writes lives in :mod:`rkmpc.experiments`, :mod:`rkmpc.sim`
@@ -8,17 +8,15 @@ and :mod:`rkmpc.learning`.
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 import warnings
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
+from rkmpc.cli.common import CACHE_HELP, VEHICLES, split_controllers
+from rkmpc.cli.study import add_study_parser, cmd_study
 from rkmpc.core.errors import IdentificationWarning, RkmpcError
-
-_VEHICLES = ["f1tenth", "fullsize"]
-_CACHE_HELP = "trained-model cache (default: $RKMPC_CACHE_DIR, else ~/.cache/rkmpc)"
 
 
 def _add_scenario_args(parser: argparse.ArgumentParser) -> None:
@@ -29,7 +27,7 @@ def _add_scenario_args(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--scale", type=float, default=None, help="scale of track files (default: 0.1 for f1tenth)"
     )
-    parser.add_argument("--vehicle", default="f1tenth", choices=_VEHICLES)
+    parser.add_argument("--vehicle", default="f1tenth", choices=VEHICLES)
     parser.add_argument(
         "--car", default=None, help="drive a car of the zoo (gym, overshoot, ..., random-<seed>) instead"
     )
@@ -58,7 +56,7 @@ def _add_learning_args(parser: argparse.ArgumentParser) -> None:
         default=None,
         help="also drive every controller with this fault (noise, delay, friction, heavy); report the effect",
     )
-    parser.add_argument("--cache-dir", type=Path, default=None, help=_CACHE_HELP)
+    parser.add_argument("--cache-dir", type=Path, default=None, help=CACHE_HELP)
     parser.add_argument("--no-cache", action="store_true", help="train every model afresh, store nothing")
     parser.add_argument("--epochs", type=int, default=None, help="training epochs of the learned models")
     _add_mismatch_arg(parser, "drive with --model files made with another car, period or track scale")
@@ -68,59 +66,6 @@ def _add_mismatch_arg(parser: argparse.ArgumentParser, what: str) -> None:
     parser.add_argument(
         "--allow-mismatch", action="store_true", help=f"{what} (refused otherwise; the results record it)"
     )
-
-
-def _add_parallel_args(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument(
-        "--jobs", type=int, default=os.cpu_count() or 1, help="parallel jobs (default: cores)"
-    )
-    parser.add_argument("--backend", default="loky", choices=["loky", "dask", "ray"], help="where jobs run")
-    parser.add_argument("--address", default=None, help="scheduler address of a running dask or ray cluster")
-    parser.add_argument("--out", required=True, type=Path, help="output folder")
-
-
-def _add_study_parser(sub: Any) -> None:
-    from rkmpc.experiments.compare import ALL_CONTROLLERS
-    from rkmpc.experiments.studies.cars import CARS_CONTROLLERS, DEFAULT_CARS
-    from rkmpc.experiments.studies.data import DEFAULT_SIZES
-
-    study = sub.add_parser("study", help="multi-run studies: over tracks, cars, or training-data volume")
-    kinds = study.add_subparsers(dest="study", required=True)
-    tracks = kinds.add_parser(
-        "tracks", help="every controller on many tracks; mean and spread per controller"
-    )
-    tracks.add_argument(
-        "--tracks",
-        default="builtin",
-        help="comma-separated built-in names, centre-line CSV files or folders of them",
-    )
-    tracks.add_argument("--controllers", default=",".join(ALL_CONTROLLERS))
-    tracks.add_argument("--seeds", default="0", help="comma-separated seeds; one job per track and seed")
-    tracks.add_argument("--scale", type=float, default=None)
-    tracks.add_argument("--vehicle", default="f1tenth", choices=_VEHICLES)
-    tracks.add_argument("--kmpc-samples", type=int, default=50_000)
-    tracks.add_argument("--fault", default=None, help="also drive every controller with this fault")
-    tracks.add_argument("--epochs", type=int, default=None, help="training epochs of the learned models")
-    tracks.add_argument("--cache-dir", type=Path, default=None, help=_CACHE_HELP)
-    _add_parallel_args(tracks)
-    cars = kinds.add_parser("cars", help="every controller on cars of the zoo it was not built for")
-    cars.add_argument("--cars", default=",".join(DEFAULT_CARS), help="zoo variants (or random-<seed>)")
-    cars.add_argument("--tracks", default="builtin", help="as for `study tracks`")
-    cars.add_argument("--controllers", default=",".join(CARS_CONTROLLERS))
-    cars.add_argument("--seeds", default="0")
-    cars.add_argument("--kmpc-samples", type=int, default=50_000)
-    cars.add_argument("--epochs", type=int, default=None, help="training epochs of the learned models")
-    cars.add_argument("--cache-dir", type=Path, default=None, help=_CACHE_HELP)
-    _add_parallel_args(cars)
-    data = kinds.add_parser("data", help="RKMPC against KMPC as the number of training samples grows")
-    data.add_argument("--track", default="builtin")
-    data.add_argument("--scale", type=float, default=None)
-    data.add_argument("--vehicle", default="f1tenth", choices=_VEHICLES)
-    data.add_argument("--sizes", default=",".join(str(n) for n in DEFAULT_SIZES), help="training samples")
-    data.add_argument("--seeds", default="0,1,2")
-    data.add_argument("--controllers", default="rkmpc,kmpc")
-    data.add_argument("--epochs", type=int, default=None, help="training epochs (default: the models' own)")
-    _add_parallel_args(data)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -165,14 +110,14 @@ def build_parser() -> argparse.ArgumentParser:
     train = sub.add_parser("train", help="train a model from a data set")
     train.add_argument("--data", required=True, type=Path)
     train.add_argument("--kind", required=True, choices=model_kinds())
-    train.add_argument("--vehicle", default="f1tenth", choices=_VEHICLES, help="the car the model is for")
+    train.add_argument("--vehicle", default="f1tenth", choices=VEHICLES, help="the car the model is for")
     train.add_argument("--dt", type=float, default=0.05, help="control period the model is for (s)")
     _add_mismatch_arg(train, "train on data recorded with another car or period")
     train.add_argument("--epochs", type=int, default=None)
     train.add_argument("--seed", type=int, default=0)
     train.add_argument("--out", required=True, type=Path, help="model file")
     sub.add_parser("tracks", help="list the built-in tracks")
-    _add_study_parser(sub)
+    add_study_parser(sub)
     return parser
 
 
@@ -183,7 +128,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "tracks": _cmd_tracks,
         "collect": _cmd_collect,
         "train": _cmd_train,
-        "study": _cmd_study,
+        "study": cmd_study,
         "run": _cmd_compare,
         "compare": _cmd_compare,
     }
@@ -196,23 +141,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     except (RkmpcError, ValueError, OSError) as exc:
         print(f"rkmpc: error: {exc}", file=sys.stderr)
         return 2
-
-
-def _split(text: str) -> list[str]:
-    from rkmpc.control.registry import CONTROLLERS
-
-    names = [n.strip() for n in text.split(",") if n.strip()]
-    unknown = [n for n in names if n not in CONTROLLERS]
-    if unknown or not names:
-        raise ValueError(f"unknown controller(s) {unknown}; known: {sorted(CONTROLLERS)}")
-    return names
-
-
-def _ints(text: str, what: str) -> tuple[int, ...]:
-    try:
-        return tuple(int(v) for v in text.split(",") if v.strip())
-    except ValueError:
-        raise ValueError(f"{what} must be comma-separated integers, got {text!r}") from None
 
 
 def _model_files(names: list[str], specs: list[str]) -> dict[str, str]:
@@ -311,7 +239,7 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     from rkmpc.experiments.report import title_of, write_comparison, write_single_run
 
     single = args.command == "run"
-    names = [args.controller] if single else _split(args.controllers)
+    names = [args.controller] if single else split_controllers(args.controllers)
     config = CompareConfig(
         track=args.track,
         raceline=args.raceline,
@@ -355,75 +283,3 @@ def _cmd_compare(args: argparse.Namespace) -> int:
         faulted = {name: run.metrics for name, run in result.fault.runs.items()}
         wide.print(fault_table(result.metrics(), faulted, result.fault.effects, result.fault.fault))
     return 0
-
-
-def _study_progress(console: Any) -> Any:
-    def progress(outcome: Any, done: int, total: int) -> None:
-        state = f"{outcome.seconds:.0f} s" if outcome.ok else f"FAILED: {outcome.error}"
-        console.print(f"[{done}/{total}] {outcome.name}: {state}")
-
-    return progress
-
-
-def _cmd_study(args: argparse.Namespace) -> int:
-    from rich.console import Console
-
-    from rkmpc.analysis.plots import save_figure
-    from rkmpc.analysis.study_plots import plot_cars_study, plot_data_study
-    from rkmpc.core.io import write_json_atomic, write_text_atomic
-    from rkmpc.experiments.parallel import limit_threads
-    from rkmpc.experiments.studies.cars import CarsStudyConfig, study_cars
-    from rkmpc.experiments.studies.common import expand_tracks
-    from rkmpc.experiments.studies.data import DataStudyConfig, study_data
-    from rkmpc.experiments.studies.tracks import TracksStudyConfig, study_tracks
-
-    limit_threads()  # this process trains too (the KMPC model, or jobs when --jobs 1)
-    console = Console(stderr=True)
-    where = {"n_jobs": args.jobs, "backend": args.backend, "address": args.address}
-    result: Any
-    if args.study in ("tracks", "cars"):
-        names = _split(args.controllers)
-        options: dict[str, Any] = {"kmpc_samples": args.kmpc_samples, "epochs": args.epochs}
-        if args.study == "tracks":
-            options["fault"] = args.fault
-        if args.cache_dir is not None:
-            options["cache_dir"] = str(args.cache_dir)
-        config = TracksStudyConfig(
-            tracks=expand_tracks(args.tracks.split(",")),
-            controllers=names,
-            seeds=_ints(args.seeds, "--seeds"),
-            scale=args.scale if args.study == "tracks" else None,
-            vehicle=args.vehicle if args.study == "tracks" else "f1tenth",
-            baseline="lmpc" if "lmpc" in names else None,
-            study_options=options,
-        )
-        if args.study == "tracks":
-            result = study_tracks(config, **where, progress=_study_progress(console), say=console.print)
-        else:
-            cars_config = CarsStudyConfig(cars=args.cars, tracks=config)
-            result = study_cars(cars_config, **where, progress=_study_progress(console), say=console.print)
-            save_figure(plot_cars_study(*result.plot_data()), args.out / "study_cars.png")
-    else:
-        data_config = DataStudyConfig(
-            track=args.track,
-            scale=args.scale,
-            vehicle=args.vehicle,
-            sizes=_ints(args.sizes, "--sizes"),
-            seeds=_ints(args.seeds, "--seeds"),
-            controllers=tuple(_split(args.controllers)),
-            epochs=args.epochs,
-        )
-        result = study_data(data_config, **where, progress=_study_progress(console))
-        title = f"training data volume, {args.track}"
-        figure = plot_data_study(result.series(), result.baseline.lateral_error_mean_m, title)
-        save_figure(figure, args.out / "study_data.png")
-    text = result.to_markdown()
-    stem = f"study_{args.study}"
-    write_json_atomic(args.out / f"{stem}.json", result.to_json())
-    write_text_atomic(args.out / f"{stem}.md", text)
-    print(text)
-    return 0
-
-
-if __name__ == "__main__":  # pragma: no cover
-    raise SystemExit(main())

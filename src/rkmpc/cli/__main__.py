@@ -1,0 +1,5 @@
+"""``python -m rkmpc.cli``."""
+
+from rkmpc.cli import main
+
+raise SystemExit(main())

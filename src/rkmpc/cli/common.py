@@ -1,0 +1,38 @@
+"""What the command-line modules share: argument groups and parsers of lists."""
+
+from __future__ import annotations
+
+import argparse
+import os
+from pathlib import Path
+
+__all__ = ["CACHE_HELP", "VEHICLES", "add_parallel_args", "ints", "split_controllers"]
+
+VEHICLES = ["f1tenth", "fullsize"]
+CACHE_HELP = "trained-model cache (default: $RKMPC_CACHE_DIR, else ~/.cache/rkmpc)"
+
+
+def add_parallel_args(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--jobs", type=int, default=os.cpu_count() or 1, help="parallel jobs (default: cores)"
+    )
+    parser.add_argument("--backend", default="loky", choices=["loky", "dask", "ray"], help="where jobs run")
+    parser.add_argument("--address", default=None, help="scheduler address of a running dask or ray cluster")
+    parser.add_argument("--out", required=True, type=Path, help="output folder")
+
+
+def split_controllers(text: str) -> list[str]:
+    from rkmpc.control.registry import CONTROLLERS
+
+    names = [n.strip() for n in text.split(",") if n.strip()]
+    unknown = [n for n in names if n not in CONTROLLERS]
+    if unknown or not names:
+        raise ValueError(f"unknown controller(s) {unknown}; known: {sorted(CONTROLLERS)}")
+    return names
+
+
+def ints(text: str, what: str) -> tuple[int, ...]:
+    try:
+        return tuple(int(v) for v in text.split(",") if v.strip())
+    except ValueError:
+        raise ValueError(f"{what} must be comma-separated integers, got {text!r}") from None

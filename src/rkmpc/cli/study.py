@@ -1,0 +1,123 @@
+"""``rkmpc study tracks | cars | data``: the multi-run studies."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+from rkmpc.cli.common import CACHE_HELP, VEHICLES, add_parallel_args, ints, split_controllers
+
+__all__ = ["add_study_parser", "cmd_study"]
+
+
+def add_study_parser(sub: Any) -> None:
+    from rkmpc.experiments.compare import ALL_CONTROLLERS
+    from rkmpc.experiments.studies.cars import CARS_CONTROLLERS, DEFAULT_CARS
+    from rkmpc.experiments.studies.data import DEFAULT_SIZES
+
+    study = sub.add_parser("study", help="multi-run studies: over tracks, cars, or training-data volume")
+    kinds = study.add_subparsers(dest="study", required=True)
+    tracks = kinds.add_parser(
+        "tracks", help="every controller on many tracks; mean and spread per controller"
+    )
+    tracks.add_argument(
+        "--tracks",
+        default="builtin",
+        help="comma-separated built-in names, centre-line CSV files or folders of them",
+    )
+    tracks.add_argument("--controllers", default=",".join(ALL_CONTROLLERS))
+    tracks.add_argument("--seeds", default="0", help="comma-separated seeds; one job per track and seed")
+    tracks.add_argument("--scale", type=float, default=None)
+    tracks.add_argument("--vehicle", default="f1tenth", choices=VEHICLES)
+    tracks.add_argument("--kmpc-samples", type=int, default=50_000)
+    tracks.add_argument("--fault", default=None, help="also drive every controller with this fault")
+    tracks.add_argument("--epochs", type=int, default=None, help="training epochs of the learned models")
+    tracks.add_argument("--cache-dir", type=Path, default=None, help=CACHE_HELP)
+    add_parallel_args(tracks)
+    cars = kinds.add_parser("cars", help="every controller on cars of the zoo it was not built for")
+    cars.add_argument("--cars", default=",".join(DEFAULT_CARS), help="zoo variants (or random-<seed>)")
+    cars.add_argument("--tracks", default="builtin", help="as for `study tracks`")
+    cars.add_argument("--controllers", default=",".join(CARS_CONTROLLERS))
+    cars.add_argument("--seeds", default="0")
+    cars.add_argument("--kmpc-samples", type=int, default=50_000)
+    cars.add_argument("--epochs", type=int, default=None, help="training epochs of the learned models")
+    cars.add_argument("--cache-dir", type=Path, default=None, help=CACHE_HELP)
+    add_parallel_args(cars)
+    data = kinds.add_parser("data", help="RKMPC against KMPC as the number of training samples grows")
+    data.add_argument("--track", default="builtin")
+    data.add_argument("--scale", type=float, default=None)
+    data.add_argument("--vehicle", default="f1tenth", choices=VEHICLES)
+    data.add_argument("--sizes", default=",".join(str(n) for n in DEFAULT_SIZES), help="training samples")
+    data.add_argument("--seeds", default="0,1,2")
+    data.add_argument("--controllers", default="rkmpc,kmpc")
+    data.add_argument("--epochs", type=int, default=None, help="training epochs (default: the models' own)")
+    add_parallel_args(data)
+
+
+def _study_progress(console: Any) -> Any:
+    def progress(outcome: Any, done: int, total: int) -> None:
+        state = f"{outcome.seconds:.0f} s" if outcome.ok else f"FAILED: {outcome.error}"
+        console.print(f"[{done}/{total}] {outcome.name}: {state}")
+
+    return progress
+
+
+def cmd_study(args: argparse.Namespace) -> int:
+    from rich.console import Console
+
+    from rkmpc.analysis.plots import save_figure
+    from rkmpc.analysis.study_plots import plot_cars_study, plot_data_study
+    from rkmpc.core.io import write_json_atomic, write_text_atomic
+    from rkmpc.experiments.parallel import limit_threads
+    from rkmpc.experiments.studies.cars import CarsStudyConfig, study_cars
+    from rkmpc.experiments.studies.common import expand_tracks
+    from rkmpc.experiments.studies.data import DataStudyConfig, study_data
+    from rkmpc.experiments.studies.tracks import TracksStudyConfig, study_tracks
+
+    limit_threads()  # this process trains too (the KMPC model, or jobs when --jobs 1)
+    console = Console(stderr=True)
+    where = {"n_jobs": args.jobs, "backend": args.backend, "address": args.address}
+    result: Any
+    if args.study in ("tracks", "cars"):
+        names = split_controllers(args.controllers)
+        options: dict[str, Any] = {"kmpc_samples": args.kmpc_samples, "epochs": args.epochs}
+        if args.study == "tracks":
+            options["fault"] = args.fault
+        if args.cache_dir is not None:
+            options["cache_dir"] = str(args.cache_dir)
+        config = TracksStudyConfig(
+            tracks=expand_tracks(args.tracks.split(",")),
+            controllers=names,
+            seeds=ints(args.seeds, "--seeds"),
+            scale=args.scale if args.study == "tracks" else None,
+            vehicle=args.vehicle if args.study == "tracks" else "f1tenth",
+            baseline="lmpc" if "lmpc" in names else None,
+            study_options=options,
+        )
+        if args.study == "tracks":
+            result = study_tracks(config, **where, progress=_study_progress(console), say=console.print)
+        else:
+            cars_config = CarsStudyConfig(cars=args.cars, tracks=config)
+            result = study_cars(cars_config, **where, progress=_study_progress(console), say=console.print)
+            save_figure(plot_cars_study(*result.plot_data()), args.out / "study_cars.png")
+    else:
+        data_config = DataStudyConfig(
+            track=args.track,
+            scale=args.scale,
+            vehicle=args.vehicle,
+            sizes=ints(args.sizes, "--sizes"),
+            seeds=ints(args.seeds, "--seeds"),
+            controllers=tuple(split_controllers(args.controllers)),
+            epochs=args.epochs,
+        )
+        result = study_data(data_config, **where, progress=_study_progress(console))
+        title = f"training data volume, {args.track}"
+        figure = plot_data_study(result.series(), result.baseline.lateral_error_mean_m, title)
+        save_figure(figure, args.out / "study_data.png")
+    text = result.to_markdown()
+    stem = f"study_{args.study}"
+    write_json_atomic(args.out / f"{stem}.json", result.to_json())
+    write_text_atomic(args.out / f"{stem}.md", text)
+    print(text)
+    return 0
