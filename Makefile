@@ -3,7 +3,7 @@ PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 
-.PHONY: demo test test-slow test-all lint bench bench-breakdown tracks-table learning-table study-tracks study-data faults results clean
+.PHONY: demo test test-slow test-all lint bench bench-breakdown tracks-table learning-table study-tracks study-cars study-data faults results clean
 
 # PyTorch first and pinned exactly: a looser pin pulls a multi-gigabyte CUDA build.
 $(BIN)/python:
@@ -52,6 +52,11 @@ learning-table: $(VENV)/.installed
 # Every controller on the built-in and every shared track (runs in parallel on the local cores).
 study-tracks: $(VENV)/.installed
 	$(BIN)/rkmpc study tracks --tracks builtin,../shared/tracks/centerlines --out runs/study-tracks
+
+# Every controller on six cars of the zoo (issue 11) over every shared track; long (hours on 2 cores).
+study-cars: $(VENV)/.installed
+	$(BIN)/rkmpc study cars --cars gym,overshoot,cheap-servo,low-grip,heavy-long,light-short \
+		--tracks builtin,../shared/tracks/centerlines --controllers pp,lmpc,lmpc-id,rkmpc --out runs/study-cars
 
 # RKMPC against KMPC as the training data grow, three seeds.
 study-data: $(VENV)/.installed

@@ -79,7 +79,7 @@ def test_short_closed_loop_runs(builtin_scenario, learned, name):
         assert result.outcome == "timeout"
 
 
-def test_rkmpc_beats_lmpc_and_lmpc_id_on_builtin(builtin_scenario, learned):
+def test_rkmpc_and_lmpc_id_beat_lmpc_on_builtin(builtin_scenario, learned):
     sc = builtin_scenario
     _, lmpc = run_controller(sc, RunSpec("lmpc"))
     _, lmpc_id = run_controller(sc, RunSpec("lmpc-id"), controller_options={"model": learned["lmpc-id"]})
@@ -87,9 +87,11 @@ def test_rkmpc_beats_lmpc_and_lmpc_id_on_builtin(builtin_scenario, learned):
     assert rkmpc["completed"] and lmpc_id["completed"]
     for key in ("lateral_error_mean_m", "heading_error_mean_rad", "steer_rate_mean_rad_s"):
         assert rkmpc[key] < 0.8 * lmpc[key], key
-    assert lmpc_id["lateral_error_mean_m"] < lmpc["lateral_error_mean_m"]
-    assert rkmpc["lateral_error_mean_m"] < lmpc_id["lateral_error_mean_m"]
-    assert rkmpc["heading_error_mean_rad"] < lmpc_id["heading_error_mean_rad"]
+    # Since lmpc-id models the servo's delay and rate and the wheel reference's drift (issue 11)
+    # it tracks the built-in track about as well as rkmpc (0.017 against 0.018 m): both must beat
+    # the LMPC clearly; which of the two is ahead is a result, reported, not asserted.
+    assert lmpc_id["lateral_error_mean_m"] < 0.8 * lmpc["lateral_error_mean_m"]
+    assert lmpc_id["heading_error_mean_rad"] < 0.8 * lmpc["heading_error_mean_rad"]
 
 
 def test_rkmpc_without_measured_wheel_angle_falls_back_to_lmpc(builtin_scenario, learned):
