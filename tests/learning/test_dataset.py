@@ -271,6 +271,22 @@ def test_from_log_splits_episodes_at_holes_and_drops_missing_commands():
         TransitionDataset.from_log(bare)
 
 
+def test_from_log_leaves_out_a_spun_car_sliding_backwards():
+    from rkmpc.sim.closed_loop import log_columns
+
+    log = StepLog(log_columns(("x", "y")))
+    cols = log.columns
+    for k in range(8):
+        row = np.zeros(len(cols))
+        row[cols.index("t")] = k * DT
+        row[cols.index("x")] = k * 0.1
+        row[cols.index("speed")] = -0.3 if k >= 5 else 2.0  # spun at row 5
+        row[cols.index("cmd_speed")] = 2.0
+        log.append(row)
+    data = TransitionDataset.from_log(log)
+    assert len(data) == 4 and np.all(data.next_obs[:, 3] >= 0.0)
+
+
 def test_collect_two_laps(builtin_scenario, tmp_path):
     data = collect(builtin_scenario, laps=2, seed=3)
     meta = data.metadata

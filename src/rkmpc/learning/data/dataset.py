@@ -197,7 +197,8 @@ class TransitionDataset:
 
         Row ``k`` of the log becomes a transition when its command
         (``cmd_speed``, ``cmd_steer``) is finite, its and row ``k + 1``'s
-        ``x, y, yaw, speed`` are finite and, when the log has a ``t`` column,
+        ``x, y, yaw, speed`` are finite (and the speed not negative: a car sliding
+        backwards after a spin) and, when the log has a ``t`` column,
         ``t[k + 1] - t[k]`` equals ``dt``. The last row never has a
         successor. A normal run gives one episode; a log with holes (a row
         that cannot be used in the middle) gives one episode per unbroken
@@ -244,6 +245,9 @@ class TransitionDataset:
         if n_rows < 2:
             raise ParameterError(f"TransitionDataset.from_log: the log has {n_rows} row(s); need at least 2")
         row_ok = np.all(np.isfinite(obs_all[:, REQUIRED_COLUMNS]), axis=1)
+        # A spun car sliding backwards (speed along its heading below 0) is no transition the
+        # models describe: such rows are holes, as non-finite ones are.
+        row_ok &= ~(obs_all[:, OBSERVATION_FIELDS.index("speed")] < 0.0)
         usable = row_ok[:-1] & row_ok[1:] & np.all(np.isfinite(cmd_all[:-1]), axis=1)
         if times is not None:
             usable &= np.isclose(np.diff(times), dt, rtol=1e-6, atol=1e-9)
