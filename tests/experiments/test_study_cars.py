@@ -78,3 +78,11 @@ def test_study_cars_drives_each_car() -> None:
     assert lat[0] != lat[1]
     md = result.to_markdown()
     assert "### gym: F1TENTH gym car" in md and "### light-short" in md
+
+
+def test_plot_survives_a_mean_rounded_outside_its_range() -> None:
+    from rkmpc.analysis.statistics import Stats
+
+    odd = Stats(n=3, mean=0.1 + 1e-15, std=0.0, min=0.1, max=0.1)
+    figure = plot_cars_study(["gym"], ["lmpc"], {"gym": {"lmpc": odd}}, {"gym": {"lmpc": 1.0}})
+    assert len(figure.axes[0].patches) == 1

@@ -122,7 +122,9 @@ def plot_cars_study(
         low = np.array([np.nan if s.min is None else s.min for s in stats_])
         high = np.array([np.nan if s.max is None else s.max for s in stats_])
         ax_lat.bar(offset, mean, width, label=name)
-        ax_lat.errorbar(offset, mean, yerr=[mean - low, high - mean], fmt="none", ecolor="k", lw=0.8)
+        # Rounding can put the mean a hair outside [min, max] when all values are equal.
+        spread = [np.maximum(mean - low, 0.0), np.maximum(high - mean, 0.0)]
+        ax_lat.errorbar(offset, mean, yerr=spread, fmt="none", ecolor="k", lw=0.8)
         ax_done.bar(offset, [completion[car][name] for car in cars], width, label=name)
     for ax in (ax_lat, ax_done):
         ax.set_xticks(x, list(cars), rotation=30, ha="right")

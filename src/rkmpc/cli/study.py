@@ -100,7 +100,6 @@ def cmd_study(args: argparse.Namespace) -> int:
         else:
             cars_config = CarsStudyConfig(cars=args.cars, tracks=config)
             result = study_cars(cars_config, **where, progress=_study_progress(console), say=console.print)
-            save_figure(plot_cars_study(*result.plot_data()), args.out / "study_cars.png")
     else:
         data_config = DataStudyConfig(
             track=args.track,
@@ -112,12 +111,16 @@ def cmd_study(args: argparse.Namespace) -> int:
             epochs=args.epochs,
         )
         result = study_data(data_config, **where, progress=_study_progress(console))
-        title = f"training data volume, {args.track}"
-        figure = plot_data_study(result.series(), result.baseline.lateral_error_mean_m, title)
-        save_figure(figure, args.out / "study_data.png")
+    # The results first: a figure that fails must not lose hours of runs.
     text = result.to_markdown()
     stem = f"study_{args.study}"
     write_json_atomic(args.out / f"{stem}.json", result.to_json())
     write_text_atomic(args.out / f"{stem}.md", text)
     print(text)
+    if args.study == "cars":
+        save_figure(plot_cars_study(*result.plot_data()), args.out / "study_cars.png")
+    elif args.study == "data":
+        title = f"training data volume, {args.track}"
+        figure = plot_data_study(result.series(), result.baseline.lateral_error_mean_m, title)
+        save_figure(figure, args.out / "study_data.png")
     return 0
