@@ -207,7 +207,7 @@ def test_compare_learns_and_writes_the_results_schema(tmp_path):
         assert info["augmented_samples"] > info["raw_samples"] > 0 or name == "kmpc"
         assert info["fit_time_s"] > 0 and info["cached"] is False
         assert all(lo <= hi for lo, hi in zip(info["state_min"], info["state_max"], strict=True))
-    assert len(training["rkmpc"]["state_min"]) == 3  # speed, yaw rate, wheel angle
+    assert len(training["rkmpc"]["state_min"]) == 5  # speed, yaw rate, wheel angle, previous command
     assert training["kmpc"]["raw_samples"] == 1000
     assert training["lmpc-id"]["raw_samples"] == training["data"]["raw_samples"]
     assert results["config"]["seed"] == 0 and "numpy" in results["config"]["versions"]

@@ -194,7 +194,12 @@ def test_trust_guard_fades_the_correction_outside_the_training_range(builtin_sce
     span = model.x_max_[0] - model.x_min_[0]
     fast = float(model.x_max_[0] + 0.5 * span)  # half a span faster than any training speed
     obs = Observation(
-        x=float(p[0]), y=float(p[1]), yaw=float(sc.reference.path.heading(4.0)), speed=fast, steer_angle=0.0
+        x=float(p[0]),
+        y=float(p[1]),
+        yaw=float(sc.reference.path.heading(4.0)),
+        speed=fast,
+        yaw_rate=0.0,
+        steer_angle=0.0,
     )
     cmd, base = ctrl.step(obs), lmpc.step(obs)
     assert ctrl.trust is not None and ctrl.trust.trust == 0.0
@@ -213,13 +218,21 @@ def test_adaptation_learns_on_the_car_and_stays_finite(builtin_scenario, learned
     assert result.outcome == "timeout"
 
 
-def test_steering_rate_weight_slows_the_commanded_wheel(builtin_scenario, learned):
+def test_steering_rate_weight_smooths_the_correction(builtin_scenario, learned):
+    # The weight acts on the step-to-step change of the steering CORRECTION (not of the whole
+    # command: on this car it even lets the command move more, see issue 11's note).
     sc = builtin_scenario
-    rates = []
+    changes = []
     for weight in (0.0, 20.0):
         cfg = replace(ResidualKoopmanMPC.default_config, steer_rate_weight=weight)
-        options = {"model": learned["rkmpc"], "config": cfg}
-        _, metrics = run_controller(sc, RunSpec("rkmpc"), controller_options=options)
-        assert metrics.completed
-        rates.append(metrics.command_rate_mean_rad_s)
-    assert rates[1] < rates[0]
+        ctrl = ResidualKoopmanMPC(sc.reference, sc.vehicle, learned["rkmpc"], config=cfg)
+        plant = make_plant("f1tenth")
+        p = sc.reference.path.position(0.0)
+        plant.reset(float(p[0]), float(p[1]), float(sc.reference.path.heading(0.0)), 2.0)
+        corrections = []
+        for _ in range(120):
+            command = ctrl.step(plant.observe())
+            corrections.append(ctrl.last_correction[1])
+            plant.step(command, sc.dt)
+        changes.append(float(np.mean(np.abs(np.diff(corrections)))))
+    assert changes[1] < changes[0]
