@@ -244,3 +244,38 @@ def single_track_observation(
         steer_angle=delta,
         time=time,
     )
+
+
+class SingleTrackPlant(ActuatedPlant):
+    """An actuated plant whose state is ``[x, y, yaw, v, beta, yaw_rate, delta]`` (a Python list).
+
+    It starts on the kinematic circle of the reset wheel angle and reports
+    :func:`single_track_observation`; subclasses integrate (:meth:`_advance`) and
+    may reset parts of their own (:meth:`_reset_parts`).
+    """
+
+    STATE_NAMES: tuple[str, ...] = ("x", "y", "yaw", "v", "beta", "yaw_rate", "delta")
+    _s: list[float]
+
+    def _reset_state(self, x: float, y: float, yaw: float, speed: float, steer: float) -> None:
+        length = self.params.wheelbase
+        beta = math.atan(self.params.lr / length * math.tan(steer))
+        yaw_rate = speed * math.cos(beta) * math.tan(steer) / length
+        self._reset_parts(steer)
+        self._s = [x, y, yaw, speed, beta, yaw_rate, steer]
+
+    def _reset_parts(self, steer: float) -> None:
+        """Hook: reset the plant's own parts to hold the wheel angle ``steer`` (rad)."""
+
+    def observe(self) -> Observation:
+        """True observation; ``speed`` is the velocity along the heading, ``v cos(beta)``."""
+        x, y, yaw, v, beta, r, delta = self._s
+        return single_track_observation(x, y, yaw, v, beta, r, delta, self._time)
+
+    @property
+    def state(self) -> np.ndarray:
+        return np.array(self._s, dtype=float)
+
+    @property
+    def wheel_angle(self) -> float:
+        return self._s[6]

@@ -17,20 +17,17 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-
-from rkmpc.core.observation import Observation
 from rkmpc.vehicle.actuators import SpeedLoopSpec, SteeringSpec
 from rkmpc.vehicle.chassis import build_chassis
 from rkmpc.vehicle.friction import FrictionSchedule
 from rkmpc.vehicle.params import VehicleParams
-from rkmpc.vehicle.plants.base import ActuatedPlant, single_track_observation
+from rkmpc.vehicle.plants.base import SingleTrackPlant
 from rkmpc.vehicle.tyres import TyreModel
 
 __all__ = ["ComposedPlant"]
 
 
-class ComposedPlant(ActuatedPlant):
+class ComposedPlant(SingleTrackPlant):
     """Single-track car assembled from a steering actuator, a speed loop and tyres.
 
     Parameters
@@ -61,8 +58,6 @@ class ComposedPlant(ActuatedPlant):
         ``("x", "y", "yaw", "v", "beta", "yaw_rate", "delta")``.
     """
 
-    STATE_NAMES: tuple[str, ...] = ("x", "y", "yaw", "v", "beta", "yaw_rate", "delta")
-
     def __init__(
         self,
         params: VehicleParams,
@@ -85,12 +80,8 @@ class ComposedPlant(ActuatedPlant):
         self._s: list[float] = [0.0] * 7
         super().__init__(params, internal_dt=internal_dt, input_delay=input_delay, friction=friction)
 
-    def _reset_state(self, x: float, y: float, yaw: float, speed: float, steer: float) -> None:
-        length = self.params.wheelbase
-        beta = math.atan(self.params.lr / length * math.tan(steer))
-        yaw_rate = speed * math.cos(beta) * math.tan(steer) / length
+    def _reset_parts(self, steer: float) -> None:
         self._actuator.reset(steer)
-        self._s = [x, y, yaw, speed, beta, yaw_rate, steer]
 
     def _advance(self, duration: float, setpoint: tuple[float, float]) -> None:
         if duration <= 0.0:
@@ -135,16 +126,3 @@ class ComposedPlant(ActuatedPlant):
                 v = 0.0
             t += h
         self._s = [x, y, yaw, v, beta, r, delta]
-
-    def observe(self) -> Observation:
-        """True observation; ``speed`` is the velocity along the heading, ``v cos(beta)``."""
-        x, y, yaw, v, beta, r, delta = self._s
-        return single_track_observation(x, y, yaw, v, beta, r, delta, self._time)
-
-    @property
-    def state(self) -> np.ndarray:
-        return np.array(self._s, dtype=float)
-
-    @property
-    def wheel_angle(self) -> float:
-        return self._s[6]

@@ -37,13 +37,10 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 
-import numpy as np
-
-from rkmpc.core.observation import Observation
 from rkmpc.vehicle.chassis import build_chassis
 from rkmpc.vehicle.friction import FrictionSchedule
 from rkmpc.vehicle.params import VehicleParams, f1tenth
-from rkmpc.vehicle.plants.base import ActuatedPlant, single_track_observation
+from rkmpc.vehicle.plants.base import SingleTrackPlant
 from rkmpc.vehicle.tyres import PacejkaTyre
 
 __all__ = ["DynamicPlant"]
@@ -87,7 +84,7 @@ def _build_rhs(p: VehicleParams) -> _Rhs:
     return rhs
 
 
-class DynamicPlant(ActuatedPlant):
+class DynamicPlant(SingleTrackPlant):
     """Blended kinematic/dynamic single-track car with Pacejka tyres and actuators.
 
     See the module docstring for the equations.
@@ -112,8 +109,6 @@ class DynamicPlant(ActuatedPlant):
         ``("x", "y", "yaw", "v", "beta", "yaw_rate", "delta")``.
     """
 
-    STATE_NAMES: tuple[str, ...] = ("x", "y", "yaw", "v", "beta", "yaw_rate", "delta")
-
     def __init__(
         self,
         params: VehicleParams | None = None,
@@ -126,12 +121,6 @@ class DynamicPlant(ActuatedPlant):
         self._rhs = _build_rhs(vehicle)
         self._s: list[float] = [0.0] * 7
         super().__init__(vehicle, internal_dt=internal_dt, input_delay=input_delay, friction=friction)
-
-    def _reset_state(self, x: float, y: float, yaw: float, speed: float, steer: float) -> None:
-        length = self.params.wheelbase
-        beta = math.atan(self.params.lr / length * math.tan(steer))
-        yaw_rate = speed * math.cos(beta) * math.tan(steer) / length
-        self._s = [x, y, yaw, speed, beta, yaw_rate, steer]
 
     def _advance(self, duration: float, setpoint: tuple[float, float]) -> None:
         if duration <= 0.0:
@@ -193,16 +182,3 @@ class DynamicPlant(ActuatedPlant):
                 v = 0.0
             t += h
         self._s = [x, y, yaw, v, beta, r, delta]
-
-    def observe(self) -> Observation:
-        """True observation; ``speed`` is the velocity along the heading, ``v cos(beta)``."""
-        x, y, yaw, v, beta, r, delta = self._s
-        return single_track_observation(x, y, yaw, v, beta, r, delta, self._time)
-
-    @property
-    def state(self) -> np.ndarray:
-        return np.array(self._s, dtype=float)
-
-    @property
-    def wheel_angle(self) -> float:
-        return self._s[6]
