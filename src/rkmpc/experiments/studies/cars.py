@@ -12,7 +12,6 @@ checks the targets of RKMPC against the LMPC on every (car, track, seed).
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass, replace
 from typing import Any
@@ -21,10 +20,16 @@ from rkmpc.analysis.statistics import ControllerSummary, Stats, summarise_runs
 from rkmpc.analysis.tables import fmt, markdown
 from rkmpc.core.errors import ParameterError
 from rkmpc.core.jsonutil import to_json_ready
-from rkmpc.experiments.compare import CompareConfig, compare
-from rkmpc.experiments.parallel import Job, JobOutcome, run_jobs
+from rkmpc.experiments.compare import CompareConfig
+from rkmpc.experiments.parallel import JobOutcome
 from rkmpc.experiments.studies.common import check_parallel, str_tuple, study_versions
-from rkmpc.experiments.studies.tracks import TrackJob, TracksStudyConfig, summary_table, train_shared_models
+from rkmpc.experiments.studies.tracks import (
+    TrackJob,
+    TracksStudyConfig,
+    run_track_jobs,
+    summary_table,
+    train_shared_models,
+)
 from rkmpc.vehicle.zoo import get_car
 
 __all__ = [
@@ -257,30 +262,9 @@ def study_cars(
         train_shared_models([config.job_config(car, tracks.tracks[0], seed) for seed in tracks.seeds], tell)
     keys = [(car, spec, seed) for car in config.cars for spec in tracks.tracks for seed in tracks.seeds]
     tell(f"{len(config.cars)} cars x {len(tracks.tracks)} tracks x {len(tracks.seeds)} seeds")
-    jobs = [
-        Job(f"{car} {spec} seed {seed}", compare, (config.job_config(car, spec, seed),))
-        for car, spec, seed in keys
-    ]
-    t0 = time.perf_counter()
-    outcomes = run_jobs(
-        jobs, n_jobs=n_jobs, backend=backend, address=address, on_error="record", progress=progress
-    )
-    wall = time.perf_counter() - t0
-    records = [
-        CarJob(
-            car=car,
-            job=TrackJob(
-                spec=spec,
-                seed=seed,
-                ok=out.ok,
-                error=out.error,
-                traceback=out.traceback,
-                seconds=out.seconds,
-                result=out.value if out.ok else None,
-            ),
-        )
-        for (car, spec, seed), out in zip(keys, outcomes, strict=True)
-    ]
+    named = [(f"{car} {spec} seed {seed}", config.job_config(car, spec, seed)) for car, spec, seed in keys]
+    jobs, wall = run_track_jobs(named, n_jobs=n_jobs, backend=backend, address=address, progress=progress)
+    records = [CarJob(car=car, job=job) for (car, _, _), job in zip(keys, jobs, strict=True)]
     summary = {}
     for car in config.cars:
         groups = [cj.job.group() for cj in records if cj.car == car]

@@ -43,6 +43,7 @@ __all__ = [
     "TrackJob",
     "TracksStudyConfig",
     "TracksStudyResult",
+    "run_track_jobs",
     "study_tracks",
     "summary_table",
     "train_shared_models",
@@ -243,25 +244,12 @@ def study_tracks(
     tell = say if say is not None else (lambda _msg: None)
     train_shared_models([config.job_config(config.tracks[0], seed) for seed in config.seeds], tell)
     tell(f"{len(config.tracks)} tracks x {len(config.seeds)} seeds on {n_jobs} {backend} workers")
-    keys = [(spec, seed) for spec in config.tracks for seed in config.seeds]
-    jobs = [Job(f"{spec} seed {seed}", compare, (config.job_config(spec, seed),)) for spec, seed in keys]
-    t0 = time.perf_counter()
-    outcomes = run_jobs(
-        jobs, n_jobs=n_jobs, backend=backend, address=address, on_error="record", progress=progress
-    )
-    wall = time.perf_counter() - t0
-    records = [
-        TrackJob(
-            spec=spec,
-            seed=seed,
-            ok=out.ok,
-            error=out.error,
-            traceback=out.traceback,
-            seconds=out.seconds,
-            result=out.value if out.ok else None,
-        )
-        for (spec, seed), out in zip(keys, outcomes, strict=True)
+    named = [
+        (f"{spec} seed {seed}", config.job_config(spec, seed))
+        for spec in config.tracks
+        for seed in config.seeds
     ]
+    records, wall = run_track_jobs(named, n_jobs=n_jobs, backend=backend, address=address, progress=progress)
     summary, rows = summarise_runs([job.group() for job in records], config.controllers, config.baseline)
     return TracksStudyResult(
         config=config,
@@ -272,6 +260,39 @@ def study_tracks(
         rows=rows,
         jobs=records,
     )
+
+
+def run_track_jobs(
+    named: Sequence[tuple[str, CompareConfig]],
+    *,
+    n_jobs: int,
+    backend: str,
+    address: str | None,
+    progress: Callable[[JobOutcome, int, int], None] | None,
+) -> tuple[list[TrackJob], float]:
+    """Run one :func:`compare` per ``(name, config)`` in parallel; a job that raises is recorded.
+
+    Returns the jobs, in the given order, and the wall time of the whole run (s, for reports).
+    """
+    jobs = [Job(name, compare, (cfg,)) for name, cfg in named]
+    t0 = time.perf_counter()
+    outcomes = run_jobs(
+        jobs, n_jobs=n_jobs, backend=backend, address=address, on_error="record", progress=progress
+    )
+    wall = time.perf_counter() - t0
+    records = [
+        TrackJob(
+            spec=cfg.track,
+            seed=cfg.seed,
+            ok=out.ok,
+            error=out.error,
+            traceback=out.traceback,
+            seconds=out.seconds,
+            result=out.value if out.ok else None,
+        )
+        for (_, cfg), out in zip(named, outcomes, strict=True)
+    ]
+    return records, wall
 
 
 def train_shared_models(jobs: Sequence[CompareConfig], tell: Callable[[str], None]) -> None:
