@@ -351,7 +351,8 @@ class ResidualKoopmanMPC(_ResidualBase):
     def _applied(self, u: np.ndarray) -> None:
         if self.trust is not None and self._z0 is not None:
             self.trust.expect(self._z0, u)
-        self._last = None if self._z0 is None else (self._z0, np.array(u, dtype=float), self._pose.copy())
+        if self._rls is not None:  # only adaptation looks back at the last step
+            self._last = None if self._z0 is None else (self._z0, np.array(u, dtype=float), self._pose)
         self._z0 = None
 
     def _residual_qp(
@@ -364,8 +365,9 @@ class ResidualKoopmanMPC(_ResidualBase):
         if not _all_finite(x):
             raise FloatingPointError("rkmpc needs measured speed, yaw rate and wheel angle")
         z0 = self.model.lift(x)
-        self._pose = np.array([observation.x, observation.y, observation.yaw])
-        self._adapt(self._pose)
+        if self._rls is not None:
+            self._pose = np.array([observation.x, observation.y, observation.yaw])
+            self._adapt(self._pose)
         if self.trust is not None:
             self.trust.judge(x)
         self._z0 = np.asarray(z0, dtype=float)
