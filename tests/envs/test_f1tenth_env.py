@@ -112,8 +112,11 @@ def test_reset_options_place_the_car(env, builtin_scenario):
         env.reset(options={"pose": np.zeros((1, 3))})
     with pytest.raises(ParameterError, match=r"shape \(1, 3\)"):
         env.reset(options={"poses": np.zeros((2, 3))})
-    with pytest.raises(ParameterError, match="finite"):
-        env.reset(options={"start_s": math.nan})
+    for bad in (math.nan, "far"):
+        with pytest.raises(ParameterError, match="start_s'] must be a finite number"):
+            env.reset(options={"start_s": bad})
+    with pytest.raises(ParameterError, match="options may hold one of"):
+        env.reset(options={"start_s": 1.0, "poses": np.zeros((1, 3))})
 
 
 @pytest.mark.parametrize(

@@ -233,21 +233,7 @@ class F1TenthTrackEnv(gym.Env[dict[str, Any], np.ndarray]):
         if self.config.noise is not None:
             plant = ObservationNoise(plant, self.config.noise, seed=plant_seed)
         path = self.scenario.reference.path
-        if "poses" in given:
-            x, y, yaw = _start_pose(given["poses"])
-            s0 = path.project(x, y).s
-        else:
-            if "start_s" in given:
-                s0 = float(given["start_s"])
-                if not math.isfinite(s0):
-                    raise ParameterError(f"F1TenthTrackEnv.reset: start_s must be finite, got {s0!r}")
-            elif self.config.random_start:
-                s0 = float(self.np_random.uniform(0.0, path.length))
-            else:
-                s0 = self.config.start_s
-            s0 %= path.length
-            x, y = (float(v) for v in path.position(s0))
-            yaw = float(path.heading(s0))
+        x, y, yaw, s0 = self._start(given)
         speed, steer = 0.0, 0.0
         if self.config.flying_start:
             limit = plant.params.steering.max_angle
@@ -262,6 +248,30 @@ class F1TenthTrackEnv(gym.Env[dict[str, Any], np.ndarray]):
         margin = self._margin(plant)
         info = _info(plant, progress, path.project(x, y, s0), margin, "running", None)
         return self._observation(plant, margin), info
+
+    def _start(self, given: dict[str, Any]) -> tuple[float, float, float, float]:
+        """Start pose ``(x, y, yaw)`` (m, m, rad) and its arc length on the reference path (m)."""
+        path = self.scenario.reference.path
+        if "poses" in given:
+            x, y, yaw = _start_pose(given["poses"])
+            return x, y, yaw, path.project(x, y).s
+        if "start_s" in given:
+            try:
+                s0 = float(given["start_s"])
+            except (TypeError, ValueError):
+                s0 = math.nan
+            if not math.isfinite(s0):
+                raise ParameterError(
+                    "F1TenthTrackEnv.reset: options['start_s'] must be a finite number, "
+                    f"got {given['start_s']!r}"
+                )
+        elif self.config.random_start:
+            s0 = float(self.np_random.uniform(0.0, path.length))
+        else:
+            s0 = self.config.start_s
+        s0 %= path.length
+        x, y = (float(v) for v in path.position(s0))
+        return x, y, float(path.heading(s0)), s0
 
     def step(self, action: np.ndarray) -> tuple[dict[str, Any], SupportsFloat, bool, bool, dict[str, Any]]:
         """Hold ``action`` (``[[steer, speed]]``) for one :attr:`timestep`; see the module docstring."""
