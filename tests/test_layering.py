@@ -16,7 +16,19 @@ import pytest
 PACKAGE = Path(__file__).resolve().parents[1] / "src" / "rkmpc"
 
 #: The floors, lowest first; ``api`` is the package's ``__init__`` (the public names).
-LAYERS = ("core", "track", "vehicle", "learning", "control", "sim", "analysis", "experiments", "cli", "api")
+LAYERS = (
+    "core",
+    "track",
+    "vehicle",
+    "learning",
+    "control",
+    "sim",
+    "envs",
+    "analysis",
+    "experiments",
+    "cli",
+    "api",
+)
 
 #: Third-party packages that only some floors may import (heavy or optional dependencies).
 CONFINED = {
@@ -26,6 +38,7 @@ CONFINED = {
     "matplotlib": ("rkmpc.analysis.",),
     "rich": ("rkmpc.cli", "rkmpc.analysis.tables"),
     "joblib": ("rkmpc.experiments.parallel",),
+    "gymnasium": ("rkmpc.envs.f1tenth",),
 }
 
 
