@@ -26,6 +26,7 @@ CONFINED = {
     "matplotlib": ("rkmpc.analysis.",),
     "rich": ("rkmpc.cli", "rkmpc.analysis.tables"),
     "joblib": ("rkmpc.experiments.parallel",),
+    "rosbags": ("rkmpc.learning.data.bags.",),
 }
 
 
