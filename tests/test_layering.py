@@ -39,6 +39,7 @@ CONFINED = {
     "rich": ("rkmpc.cli", "rkmpc.analysis.tables"),
     "joblib": ("rkmpc.experiments.parallel",),
     "gymnasium": ("rkmpc.envs.f1tenth",),
+    "rosbags": ("rkmpc.learning.data.bags.",),
 }
 
 

@@ -14,6 +14,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
+from rkmpc.cli.bags import add_bag_args, cmd_collect_from_bag
 from rkmpc.cli.common import CACHE_HELP, VEHICLES, split_controllers
 from rkmpc.cli.study import add_study_parser, cmd_study
 from rkmpc.core.errors import IdentificationWarning, RkmpcError
@@ -106,6 +107,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="instead: turn an earlier run's log.csv into data",
     )
     _add_scenario_args(collect)
+    add_bag_args(collect)
     collect.set_defaults(laps=2)
     train = sub.add_parser("train", help="train a model from a data set")
     train.add_argument("--data", required=True, type=Path)
@@ -179,6 +181,8 @@ def _cmd_collect(args: argparse.Namespace) -> int:
     from rkmpc.sim.log import StepLog
     from rkmpc.sim.scenario import load_scenario
 
+    if args.from_bag is not None:
+        return cmd_collect_from_bag(args)
     if args.from_log is not None:
         log = StepLog.from_csv(args.from_log)
         data = TransitionDataset.from_log(log, metadata={**log.metadata, "source": str(args.from_log)})

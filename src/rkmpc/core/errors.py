@@ -32,6 +32,30 @@ class InputFileError(RkmpcError, ValueError):
         super().__init__(f"{where}: {problem}")
 
 
+class BagError(InputFileError):
+    """A recorded bag (ROS 1 ``.bag``, ROS 2 sqlite3 or MCAP) cannot be read or its data are unusable.
+
+    Parameters
+    ----------
+    path : str or Path
+        The bag (a ``.bag`` file or a ROS 2 bag folder).
+    problem : str
+        What is wrong, in words.
+    topic : str, optional
+        The topic at fault, where one is.
+    field : str, optional
+        The message field at fault (``"drive.speed"``, ``"header.stamp"``), where one is.
+    """
+
+    def __init__(
+        self, path: str | Path, problem: str, topic: str | None = None, field: str | None = None
+    ) -> None:
+        self.topic = topic
+        self.message_field = field
+        where = [part for part in (topic, field) if part is not None]
+        super().__init__(path, problem, ", ".join(where) if where else None)
+
+
 class ParameterError(RkmpcError, ValueError):
     """A parameter set failed validation (names the parameter and the problem)."""
 
