@@ -16,7 +16,19 @@ import pytest
 PACKAGE = Path(__file__).resolve().parents[1] / "src" / "rkmpc"
 
 #: The floors, lowest first; ``api`` is the package's ``__init__`` (the public names).
-LAYERS = ("core", "track", "vehicle", "learning", "control", "sim", "analysis", "experiments", "cli", "api")
+LAYERS = (
+    "core",
+    "track",
+    "vehicle",
+    "learning",
+    "control",
+    "sim",
+    "analysis",
+    "experiments",
+    "ros",
+    "cli",
+    "api",
+)
 
 #: Third-party packages that only some floors may import (heavy or optional dependencies).
 CONFINED = {
@@ -26,6 +38,13 @@ CONFINED = {
     "matplotlib": ("rkmpc.analysis.",),
     "rich": ("rkmpc.cli", "rkmpc.analysis.tables"),
     "joblib": ("rkmpc.experiments.parallel",),
+    # ROS 2 (the optional ros extra): only the node modules; the core package never needs it.
+    "rclpy": ("rkmpc.ros.",),
+    "ackermann_msgs": ("rkmpc.ros.",),
+    "nav_msgs": ("rkmpc.ros.",),
+    "std_msgs": ("rkmpc.ros.",),
+    "diagnostic_msgs": ("rkmpc.ros.",),
+    "yaml": ("rkmpc.ros.config",),
 }
 
 
