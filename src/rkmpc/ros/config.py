@@ -333,7 +333,9 @@ def _build(cls: type, data: Mapping[str, Any], path: Path, prefix: str) -> Any:
     names = {f.name for f in fields(cls)}
     for key in data:
         if key not in names:
-            raise InputFileError(path, f"unknown key {key!r}; known: {sorted(names)}", field=f"{prefix}{key}")
+            known = sorted(names)
+            problem = f"unknown key {key!r} (in the file or a ROS parameter); known: {known}"
+            raise InputFileError(path, problem, field=f"{prefix}{key}")
     values: dict[str, Any] = {}
     for f in fields(cls):
         if f.name not in data:

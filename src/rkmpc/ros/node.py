@@ -141,7 +141,7 @@ class ControllerNode(Node):
         self._lockstep = config.trigger == "odometry"
         self._answered: tuple[int, int] | None = None
         self._pending_stamp: Any = None
-        self._last_msg: AckermannDriveStamped | None = None
+        self._answer_msg: AckermannDriveStamped | None = None
         self._last_decision: Decision | None = None
         self._state = ""
         self._frame_warned = False
@@ -200,8 +200,8 @@ class ControllerNode(Node):
             self.driver.on_odometry(observation, wall, wall)
             return
         key = (msg.header.stamp.sec, msg.header.stamp.nanosec)
-        if key == self._answered and self._last_msg is not None:
-            self._drive.publish(self._last_msg)  # the car asked again: it missed the answer
+        if key == self._answered and self._answer_msg is not None:
+            self._drive.publish(self._answer_msg)  # the car asked again: it missed the answer
             return
         self._pending_stamp = msg.header.stamp
         self.driver.on_odometry(observation, seconds_of(msg.header.stamp), wall)
@@ -213,7 +213,7 @@ class ControllerNode(Node):
             return
         stamp = self._pending_stamp
         decision = self.driver.step(seconds_of(stamp), time.monotonic())
-        self._publish(decision, stamp)
+        self._answer_msg = self._publish(decision, stamp)
         self._answered = (stamp.sec, stamp.nanosec)
         self._pending_stamp = None
 
@@ -230,12 +230,11 @@ class ControllerNode(Node):
 
     # -- out ------------------------------------------------------------------------------------
 
-    def _publish(self, decision: Decision, stamp: Any) -> None:
+    def _publish(self, decision: Decision, stamp: Any) -> AckermannDriveStamped:
         msg = AckermannDriveStamped()
         fill_drive(msg, decision.command, frame=self.config.frames.drive)
         msg.header.stamp = stamp
         self._drive.publish(msg)
-        self._last_msg = msg
         self._last_decision = decision
         self._record(self.config.topics.drive, msg)
         if decision.state != self._state:
@@ -247,6 +246,7 @@ class ControllerNode(Node):
             else:
                 self.get_logger().info(f"state {text}")
             self._state = decision.state
+        return msg
 
     def _publish_diagnostics(self, stamp: Any) -> None:
         d = self._last_decision
