@@ -3,7 +3,7 @@ PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 
-.PHONY: demo test test-slow test-all lint bench bench-breakdown tracks-table learning-table study-tracks study-cars study-data faults results clean
+.PHONY: ros demo test test-slow test-all lint bench bench-breakdown tracks-table learning-table study-tracks study-cars study-data faults results clean
 
 # PyTorch first and pinned exactly: a looser pin pulls a multi-gigabyte CUDA build.
 $(BIN)/python:
@@ -19,19 +19,29 @@ $(VENV)/.installed-test: pyproject.toml | $(BIN)/python
 	$(BIN)/python -m pip install --quiet -e '.[train,test]'
 	touch $@ $(VENV)/.installed
 
+# ROS 2 for `rkmpc node` and `rkmpc sim-node`: the `ros` extra, then ackermann_msgs generated from its
+# definition (ros/ackermann_msgs) and installed into the venv beside the wheels' message packages.
+ROS_MSGS := ros/build_msgs.sh ros/ackermann_msgs/CMakeLists.txt ros/ackermann_msgs/package.xml $(wildcard ros/ackermann_msgs/msg/*.msg)
+$(VENV)/.installed-ros: pyproject.toml $(ROS_MSGS) | $(BIN)/python
+	$(BIN)/python -m pip install --quiet -e '.[ros]'
+	ros/build_msgs.sh $(VENV)
+	touch $@
+
+ros: $(VENV)/.installed-ros
+
 # The paper's Table I on the built-in track: two LMPC laps of data, the residual models and
 # lmpc-id learned from them, the KMPC model (trained once, then cached), then every controller.
 demo: $(VENV)/.installed
 	$(BIN)/rkmpc compare --track builtin --out runs/demo
 
 # The fast tier (under 4 minutes on two quiet cores); `make test-slow` runs the long end-to-end tests.
-test: $(VENV)/.installed-test
+test: $(VENV)/.installed-test $(VENV)/.installed-ros
 	$(BIN)/ruff check src tests benchmarks
 	$(BIN)/ruff format --check src tests benchmarks
 	$(BIN)/mypy
 	$(BIN)/python -m pytest -m "not slow"
 
-test-slow: $(VENV)/.installed-test
+test-slow: $(VENV)/.installed-test $(VENV)/.installed-ros
 	$(BIN)/python -m pytest -m slow
 
 test-all: test test-slow

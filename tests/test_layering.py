@@ -26,6 +26,7 @@ LAYERS = (
     "envs",
     "analysis",
     "experiments",
+    "ros",
     "cli",
     "api",
 )
@@ -40,6 +41,13 @@ CONFINED = {
     "joblib": ("rkmpc.experiments.parallel",),
     "gymnasium": ("rkmpc.envs.f1tenth",),
     "rosbags": ("rkmpc.learning.data.bags.",),
+    # ROS 2 (the optional ros extra): only the node modules; the core package never needs it.
+    "rclpy": ("rkmpc.ros.",),
+    "ackermann_msgs": ("rkmpc.ros.",),
+    "nav_msgs": ("rkmpc.ros.",),
+    "std_msgs": ("rkmpc.ros.",),
+    "diagnostic_msgs": ("rkmpc.ros.",),
+    "yaml": ("rkmpc.ros.config",),
 }
 
 

@@ -1,4 +1,4 @@
-"""Command line: ``rkmpc run | compare | collect | train | tracks | study tracks | cars | data``.
+"""Command line: ``rkmpc run | compare | collect | train | tracks | study ... | node | sim-node``.
 
 This module only parses arguments and dispatches to the library; what each
 command computes and writes lives in :mod:`rkmpc.experiments`, :mod:`rkmpc.sim`
@@ -16,6 +16,7 @@ from typing import Any
 
 from rkmpc.cli.bags import add_bag_args, cmd_collect_from_bag
 from rkmpc.cli.common import CACHE_HELP, VEHICLES, split_controllers
+from rkmpc.cli.ros import ROS_COMMANDS, add_ros_parsers
 from rkmpc.cli.study import add_study_parser, cmd_study
 from rkmpc.core.errors import IdentificationWarning, RkmpcError
 
@@ -120,6 +121,7 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument("--out", required=True, type=Path, help="model file")
     sub.add_parser("tracks", help="list the built-in tracks")
     add_study_parser(sub)
+    add_ros_parsers(sub)
     return parser
 
 
@@ -133,6 +135,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "study": cmd_study,
         "run": _cmd_compare,
         "compare": _cmd_compare,
+        **ROS_COMMANDS,
     }
     try:
         # Identification warnings are part of each command's own report (train's lines, the

@@ -1,0 +1,336 @@
+"""``rkmpc node``: any controller of the registry driving a car over ROS 2.
+
+In: ``nav_msgs/msg/Odometry`` (``/ego_racecar/odom``) and, where the car measures it, the front
+wheel angle (``std_msgs/msg/Float64``). Out: ``ackermann_msgs/msg/AckermannDriveStamped``
+(``/drive``) at a fixed rate (20 Hz by default) and ``diagnostic_msgs/msg/DiagnosticArray``
+(``/diagnostics``: the safety state, the controller's step time, fall-backs, errors, lateral and
+heading error, the odometry's age). Settings: a YAML file per car (:mod:`rkmpc.ros.config`)
+whose keys ROS parameters override. What happens each period, and when the car is stopped, is
+:class:`rkmpc.ros.driver.CarDriver`'s; this module only moves messages.
+
+Ctrl-C (or SIGTERM) ends the node with a final stop command. :meth:`ControllerNode.add_recorder`
+hands every message in and out to a recorder (a bag writer), and ``--out`` writes what the node
+decided (:mod:`rkmpc.ros.record`) when it ends.
+"""
+
+from __future__ import annotations
+
+import math
+import signal
+import time
+from collections.abc import Callable
+from dataclasses import fields, is_dataclass, replace
+from pathlib import Path
+from typing import Any
+
+import rclpy
+from ackermann_msgs.msg import AckermannDriveStamped
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from nav_msgs.msg import Odometry
+from rclpy.clock import Clock, ClockType
+from rclpy.duration import Duration
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.signals import SignalHandlerOptions
+from std_msgs.msg import Float64
+
+from rkmpc.control.registry import make_controller
+from rkmpc.core.errors import ParameterError
+from rkmpc.learning.contract import contract_of
+from rkmpc.learning.io import load_model
+from rkmpc.learning.koopman.model import KoopmanModel
+from rkmpc.learning.recipes import recipe_for
+from rkmpc.ros.config import NodeConfig, flatten, load_node_config
+from rkmpc.ros.conversions import fill_drive, observation_from_odometry, seconds_of
+from rkmpc.ros.driver import CarDriver, Decision
+from rkmpc.ros.record import write_record
+from rkmpc.sim.scenario import load_scenario, vehicle_preset
+
+__all__ = ["ControllerNode", "make_driver", "run_node"]
+
+Recorder = Callable[[str, Any, int], None]
+
+#: Parameters every rclpy node declares itself; any other parameter must be a key of the car's file.
+_ROS_OWN_PARAMETERS = ("use_sim_time", "start_type_description_service")
+
+
+def make_driver(config: NodeConfig) -> CarDriver:
+    """The controller of the config on its track and car, loaded model included, in a :class:`CarDriver`.
+
+    Raises
+    ------
+    ParameterError
+        For a learned controller without a model file, a model given to one that takes none, or a
+        controller that cannot run at ``rate_hz``.
+    ContractError
+        For a model made with another car, period or track scale (unless ``allow_mismatch``).
+    """
+    preset = vehicle_preset(config.vehicle)
+    scenario = load_scenario(
+        config.track,
+        raceline=config.raceline,
+        scale=config.scale,
+        vehicle=config.vehicle,
+        limits=config.speed_limits.applied_to(preset.limits),
+        dt=config.period,
+    )
+    # The preset's tuned settings, planning with the node's period.
+    options = {
+        key: _with_period(value, config.period)
+        for key, value in preset.options_for(config.controller).items()
+    }
+    recipe = recipe_for(config.controller)
+    if recipe is not None:
+        if config.model is None:
+            raise ParameterError(
+                f"controller {config.controller!r} needs `model:` (a {recipe.kind!r} model file)"
+            )
+        model = load_model(config.model, recipe.kind)
+        if isinstance(model, KoopmanModel):
+            contract_of(model.metadata_).check(
+                scenario.provenance(),
+                source=config.model,
+                made="trained",
+                allow_mismatch=config.allow_mismatch,
+            )
+        options.update(model=model, allow_mismatch=config.allow_mismatch)
+    elif config.model is not None:
+        raise ParameterError(f"controller {config.controller!r} takes no model, but `model:` is given")
+    controller = make_controller(config.controller, scenario.reference, scenario.vehicle, **options)
+    if controller.dt is not None and abs(controller.dt - config.period) > 1e-9:
+        raise ParameterError(
+            f"controller {config.controller!r} plans with a period of {controller.dt} s; set rate_hz to "
+            f"{1.0 / controller.dt:g}"
+        )
+    return CarDriver(controller, scenario.reference, scenario.vehicle, config)
+
+
+def _with_period(value: Any, period: float) -> Any:
+    """A controller setting planning with ``period`` (s) when it has a ``dt``; anything else as it is."""
+    if is_dataclass(value) and not isinstance(value, type) and any(f.name == "dt" for f in fields(value)):
+        return replace(value, dt=period)
+    return value
+
+
+class ControllerNode(Node):
+    """The node: subscriptions, publishers and timers around a :class:`CarDriver`.
+
+    Parameters
+    ----------
+    config_path : Path
+        The car's YAML file; ROS parameter overrides of its keys are applied.
+    context : rclpy.context.Context, optional
+        The ROS context (the default one when None).
+    """
+
+    def __init__(self, config_path: Path, *, context: Any = None) -> None:
+        super().__init__("rkmpc_node", context=context, automatically_declare_parameters_from_overrides=True)
+        overrides = {
+            name: param.value
+            for name, param in self.get_parameters_by_prefix("").items()
+            if name not in _ROS_OWN_PARAMETERS and not name.startswith("qos_overrides.")
+        }
+        self.config = config = load_node_config(config_path, overrides)
+        for name, value in flatten(config).items():
+            if value is not None and not self.has_parameter(name):
+                self.declare_parameter(name, value)
+        self.driver = make_driver(config)
+        self.recorders: list[Recorder] = []
+        self._lr = self.driver.vehicle.lr if config.odometry.pose == "rear_axle" else 0.0
+        self._lockstep = config.trigger == "odometry"
+        self._answered: tuple[int, int] | None = None
+        self._pending_stamp: Any = None
+        self._answer_msg: AckermannDriveStamped | None = None
+        self._last_decision: Decision | None = None
+        self._state = ""
+        self._frame_warned = False
+        topics = config.topics
+        self._drive = self.create_publisher(AckermannDriveStamped, topics.drive, 10)
+        self._diagnostics = self.create_publisher(DiagnosticArray, topics.diagnostics, 10)
+        reliability = (
+            ReliabilityPolicy.BEST_EFFORT
+            if config.odometry.reliability == "best_effort"
+            else ReliabilityPolicy.RELIABLE
+        )
+        # The wheel angle's subscription first: when both messages wait, it is taken first.
+        if topics.steering is not None:
+            self.create_subscription(Float64, topics.steering, self._on_steering, 10)
+        self.create_subscription(
+            Odometry, topics.odometry, self._on_odometry, QoSProfile(depth=10, reliability=reliability)
+        )
+        self.create_timer(config.period, self._on_timer, clock=Clock(clock_type=ClockType.STEADY_TIME))
+        self.get_logger().info(
+            f"{config.controller} on {config.track} at {config.rate_hz:g} Hz ({config.trigger}); "
+            f"odometry {topics.odometry} -> commands {topics.drive}"
+        )
+
+    def add_recorder(self, recorder: Recorder) -> None:
+        """Call ``recorder(topic, message, receive_or_send_time_ns)`` for every message in and out."""
+        self.recorders.append(recorder)
+
+    def close(self) -> Decision:
+        """Send the final stop command and wait (1 s at most) until it is delivered."""
+        wall = time.monotonic()
+        decision = self.driver.shutdown(wall, wall)
+        self._publish(decision, self.get_clock().now().to_msg())
+        self._drive.wait_for_all_acked(Duration(seconds=1.0))
+        return decision
+
+    # -- callbacks ------------------------------------------------------------------------------
+
+    def _on_steering(self, msg: Float64) -> None:
+        self._record(self.config.topics.steering or "", msg)
+        self.driver.on_steering(float(msg.data))
+        self._answer()
+
+    def _on_odometry(self, msg: Odometry) -> None:
+        self._record(self.config.topics.odometry, msg)
+        wanted = self.config.frames.map
+        if wanted is not None and msg.header.frame_id != wanted:
+            if not self._frame_warned:
+                self.get_logger().warning(
+                    f"odometry in frame {msg.header.frame_id!r}, not {wanted!r}: ignored (frames.map)"
+                )
+                self._frame_warned = True
+            return
+        observation = observation_from_odometry(msg, rear_axle_to_cog=self._lr)
+        wall = time.monotonic()
+        if not self._lockstep:
+            self.driver.on_odometry(observation, wall, wall)
+            return
+        key = (msg.header.stamp.sec, msg.header.stamp.nanosec)
+        if key == self._answered and self._answer_msg is not None:
+            self._drive.publish(self._answer_msg)  # the car asked again: it missed the answer
+            return
+        self._pending_stamp = msg.header.stamp
+        self.driver.on_odometry(observation, seconds_of(msg.header.stamp), wall)
+        self._answer()
+
+    def _answer(self) -> None:
+        """Lock-step: answer the pending odometry once it (and its wheel angle) is in."""
+        if not self._lockstep or self._pending_stamp is None or not self.driver.answerable():
+            return
+        stamp = self._pending_stamp
+        decision = self.driver.step(seconds_of(stamp), time.monotonic())
+        self._answer_msg = self._publish(decision, stamp)
+        self._answered = (stamp.sec, stamp.nanosec)
+        self._pending_stamp = None
+
+    def _on_timer(self) -> None:
+        wall = time.monotonic()
+        now = self.get_clock().now().to_msg()
+        if self._lockstep:
+            decision = self.driver.watchdog(wall, wall)
+            if decision is not None:
+                self._publish(decision, now)
+        else:
+            self._publish(self.driver.step(wall, wall), now)
+        self._publish_diagnostics(now)
+
+    # -- out ------------------------------------------------------------------------------------
+
+    def _publish(self, decision: Decision, stamp: Any) -> AckermannDriveStamped:
+        msg = AckermannDriveStamped()
+        fill_drive(msg, decision.command, frame=self.config.frames.drive)
+        msg.header.stamp = stamp
+        self._drive.publish(msg)
+        self._last_decision = decision
+        self._record(self.config.topics.drive, msg)
+        if decision.state != self._state:
+            text = f"{decision.state}" + (
+                f": {decision.message}" if decision.message and decision.stop else ""
+            )
+            if decision.stop:  # one severity per call site (rclpy's rule)
+                self.get_logger().warning(f"state {text}")
+            else:
+                self.get_logger().info(f"state {text}")
+            self._state = decision.state
+        return msg
+
+    def _publish_diagnostics(self, stamp: Any) -> None:
+        d = self._last_decision
+        if d is None:
+            return
+        driver = self.driver
+        level = (
+            DiagnosticStatus.OK
+            if d.state == "running"
+            else (DiagnosticStatus.WARN if d.state == "waiting" else DiagnosticStatus.ERROR)
+        )
+        values: dict[str, Any] = {
+            "state": d.state,
+            "controller": driver.controller.name,
+            "solve_time_ms": 1e3 * d.solve_time_s,
+            "controller_status": d.status,
+            "fallbacks": driver.controller.fallback_count,
+            "controller_errors": driver.controller_errors,
+            "nonfinite_commands": driver.nonfinite_commands,
+            "stops": sum(n for state, n in driver.safety.counts.items() if state != "running"),
+            "lateral_error_m": d.lateral_error_m,
+            "heading_error_rad": d.heading_error_rad,
+            "odometry_age_s": d.odometry_age_s,
+            **driver.controller.diagnostics(),
+        }
+        status = DiagnosticStatus(
+            level=level,
+            name="rkmpc node",
+            message=d.state + (f": {d.message}" if d.stop and d.message else ""),
+            hardware_id=self.config.vehicle,
+            values=[KeyValue(key=k, value=_text(v)) for k, v in values.items()],
+        )
+        array = DiagnosticArray(status=[status])
+        array.header.stamp = stamp
+        self._diagnostics.publish(array)
+
+    def _record(self, topic: str, msg: Any) -> None:
+        if self.recorders:
+            now = time.time_ns()
+            for recorder in self.recorders:
+                recorder(topic, msg, now)
+
+
+def _text(value: Any) -> str:
+    if isinstance(value, float):
+        return "nan" if math.isnan(value) else f"{value:.6g}"
+    return str(value)
+
+
+def run_node(config_path: Path, *, out: Path | None = None, ros_args: list[str] | None = None) -> int:
+    """Run the node until Ctrl-C or SIGTERM; then a final stop command, and ``--out`` files. Returns 0."""
+    stop = {"flag": False}
+
+    def on_signal(signum: int, frame: Any) -> None:
+        stop["flag"] = True
+
+    rclpy.init(args=ros_args, signal_handler_options=SignalHandlerOptions.NO)
+    previous = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
+    node: ControllerNode | None = None
+    try:
+        node = ControllerNode(config_path)
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        while not stop["flag"]:
+            executor.spin_once(timeout_sec=0.1)
+        node.close()
+        node.get_logger().info("stopped: final stop command sent")
+        if out is not None:
+            driver = node.driver
+            write_record(
+                out,
+                driver.records,
+                {
+                    "config": flatten(node.config),
+                    "controller_errors": driver.controller_errors,
+                    "nonfinite_commands": driver.nonfinite_commands,
+                    "fallbacks": driver.controller.fallback_count,
+                    "last_error": driver.last_error,
+                },
+            )
+        return 0
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
