@@ -108,7 +108,7 @@ def test_rkmpc_without_measured_wheel_angle_falls_back_to_lmpc(builtin_scenario,
         steer_angle=math.nan,
     )
     cmd, base = ctrl.step(obs), lmpc.step(obs)
-    assert ctrl.info.status == "fallback" and ctrl.fallback_count == 1
+    assert ctrl.info.status == "guard" and ctrl.fallback_count == 1
     assert cmd.steer == pytest.approx(base.steer) and cmd.speed == pytest.approx(base.speed)
 
 
