@@ -49,7 +49,7 @@ def test_lmpc_solver_failure_falls_back_and_counts(builtin_scenario):
     )
     commands = [ctrl.step(obs) for _ in range(3)]
     assert ctrl.fallback_count >= 1
-    assert ctrl.info.status == "fallback"
+    assert ctrl.info.status == "iteration_limit"
     assert "QP failed" in ctrl.info.message
     for c in commands:
         assert np.isfinite(c.speed) and np.isfinite(c.steer)

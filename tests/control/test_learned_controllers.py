@@ -108,7 +108,7 @@ def test_rkmpc_without_measured_wheel_angle_falls_back_to_lmpc(builtin_scenario,
         steer_angle=math.nan,
     )
     cmd, base = ctrl.step(obs), lmpc.step(obs)
-    assert ctrl.info.status == "fallback" and ctrl.fallback_count == 1
+    assert ctrl.info.status == "guard" and ctrl.fallback_count == 1
     assert cmd.steer == pytest.approx(base.steer) and cmd.speed == pytest.approx(base.speed)
 
 
@@ -173,7 +173,7 @@ def test_kmpc_gradient_equals_the_textbook_formula(builtin_scenario, learned):
         ctrl.step(obs)
         if previous is None:
             continue
-        ref = sc.reference.horizon(ctrl._s_hint, n, ctrl.config.dt)
+        ref = sc.reference.horizon(ctrl.projection.s, n, ctrl.config.dt)
         u_ref = np.column_stack([ref.v[:n], ref.delta[:n]]).ravel()
         local = reference_in_local_frame(ref, obs).ravel()
         d0 = np.zeros(2 * n)

@@ -132,7 +132,7 @@ def test_acados_forced_failure_falls_back_and_recovers(builtin_scenario, name, m
     commands = []
     for i in range(3):
         commands.append(ctrl.step(obs))
-        assert ctrl.info.status == "fallback"
+        assert ctrl.info.status in ("numerical", "exception", "iteration_limit")
         assert "acados RTI failed" in ctrl.info.message
         assert ctrl.fallback_count == i + 1
         assert ctrl.last_plan is None
@@ -158,7 +158,7 @@ def test_acados_infeasible_problem_falls_back(builtin_scenario, name):
     # A previous wheel angle far outside the limits: the rate constraint cannot be met.
     ctrl._guard.previous = np.array([1.0, sc.vehicle.steering.max_angle + 1.0])
     cmd = ctrl.step(obs)
-    assert ctrl.info.status == "fallback"
+    assert ctrl.info.status == "numerical"  # acados reports a QP failure, not infeasibility
     assert np.isfinite(cmd.speed) and np.isfinite(cmd.steer)
     assert ctrl.fallback_count == 1
     ctrl.step(obs)

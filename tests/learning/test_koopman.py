@@ -132,6 +132,20 @@ def test_training_leaves_torch_settings_as_it_found_them(data):
     assert torch.are_deterministic_algorithms_enabled() == deterministic
 
 
+def test_training_uses_one_thread_whatever_the_machine_and_says_so(tmp_path, data):
+    """A fixed thread count (1) makes models identical everywhere; the model file records it."""
+    import torch
+
+    X, U, Xn = data
+    seen = []
+    before = torch.get_num_threads()
+    model = _mlp(2, 512).fit(X, U, Xn, on_epoch=lambda *_: seen.append(torch.get_num_threads()))
+    assert set(seen) == {1} and torch.get_num_threads() == before
+    model.save(tmp_path / "m.npz")
+    header = json.loads(str(np.load(tmp_path / "m.npz")["metadata"]))
+    assert header["torch_threads"] == 1
+
+
 def test_training_runs_exactly_its_epochs(data):
     """No wall-clock budget: the epoch count alone ends training, whatever the machine's load."""
     X, U, Xn = data

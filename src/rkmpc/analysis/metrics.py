@@ -40,7 +40,9 @@ class LapMetrics(Mapping[str, Any]):
     """The metrics of one run (see :func:`lap_metrics`), typed; also a read-only mapping by key.
 
     The fields are :data:`METRIC_KEYS`, in order; ``None`` where a metric is undefined (a lap
-    time of a lap not completed, errors of a run without steps).
+    time of a lap not completed, errors of a run without steps). Beyond them (not a table
+    column, not in the mapping), ``status_counts``: the controller's steps by status
+    (:data:`rkmpc.control.base.STATUSES`), None for files written before it was counted.
     """
 
     completed: bool
@@ -57,6 +59,7 @@ class LapMetrics(Mapping[str, Any]):
     fallback_count: int
     steps: int
     lateral_accel_max_m_s2: float | None
+    status_counts: dict[str, int] | None = None
 
     def __getitem__(self, key: str) -> Any:
         if key not in METRIC_KEYS:
@@ -70,8 +73,8 @@ class LapMetrics(Mapping[str, Any]):
         return len(METRIC_KEYS)
 
     def to_json(self) -> dict[str, Any]:
-        """The metrics as a plain dict, in :data:`METRIC_KEYS` order."""
-        return {key: getattr(self, key) for key in METRIC_KEYS}
+        """The metrics as a plain dict, in :data:`METRIC_KEYS` order, then ``status_counts``."""
+        return {**{key: getattr(self, key) for key in METRIC_KEYS}, "status_counts": self.status_counts}
 
     @classmethod
     def from_json(cls, data: Mapping[str, Any]) -> LapMetrics:
@@ -80,7 +83,10 @@ class LapMetrics(Mapping[str, Any]):
         values: dict[str, Any] = {
             key: data[key] if key in data or key not in _ADDED_KEYS else None for key in METRIC_KEYS
         }
-        return cls(**values)
+        counts = data["status_counts"] if "status_counts" in data else None
+        return cls(
+            **values, status_counts=None if counts is None else {str(k): int(v) for k, v in counts.items()}
+        )
 
 
 def lap_metrics(result: SimResult, laps: int = 1) -> LapMetrics:
@@ -110,9 +116,11 @@ def lap_metrics(result: SimResult, laps: int = 1) -> LapMetrics:
         that limit-cycles, the actual rate says nothing about the
         controller), ``solve_ms_mean``,
         ``solve_ms_p99``, ``solve_ms_max`` (controller step time, ms),
-        ``fallback_count``, ``steps`` and ``lateral_accel_max_m_s2`` (largest
+        ``fallback_count``, ``steps``, ``lateral_accel_max_m_s2`` (largest
         ``|speed * yaw rate|`` of the true state, m/s^2; None when the plant
-        does not report both).
+        does not report both) and ``status_counts`` (the controller's steps by
+        status over the whole run, :data:`rkmpc.control.base.STATUSES`; None in
+        files written before it was counted).
     """
     log = result.log
     t = log["t"]
@@ -143,6 +151,7 @@ def lap_metrics(result: SimResult, laps: int = 1) -> LapMetrics:
         fallback_count=int(result.fallback_count),
         steps=int(n),
         lateral_accel_max_m_s2=_peak_lateral_accel(log, first_lap),
+        status_counts=dict(sorted(result.status_counts.items())),
     )
 
 

@@ -61,14 +61,13 @@ class PurePursuit(Controller):
     def __init__(
         self, reference: Reference, vehicle: VehicleParams, config: PurePursuitConfig | None = None
     ) -> None:
-        super().__init__()
+        super().__init__(reference, vehicle.wheelbase)
         self.reference = reference
         self.vehicle = vehicle
         self.config = config if config is not None else PurePursuitConfig()
-        self._s_hint: float | None = None
 
     def _reset(self) -> None:
-        self._s_hint = None
+        pass
 
     def _step(self, observation: Observation) -> tuple[Command, str, str]:
         cfg = self.config
@@ -76,8 +75,7 @@ class PurePursuit(Controller):
         cos_yaw, sin_yaw = math.cos(observation.yaw), math.sin(observation.yaw)
         rear_x = observation.x - veh.lr * cos_yaw
         rear_y = observation.y - veh.lr * sin_yaw
-        proj = self.reference.project(observation.x, observation.y, self._s_hint)
-        self._s_hint = proj.s
+        proj = self._projected()
         speed = max(observation.speed, 0.0)
         lookahead = min(
             max(cfg.min_lookahead + cfg.lookahead_gain * speed, cfg.min_lookahead), cfg.max_lookahead

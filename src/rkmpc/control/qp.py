@@ -44,6 +44,18 @@ class QPResult:
     status: str
     iterations: int
 
+    @property
+    def reason(self) -> str:
+        """The outcome as a controller status (:data:`rkmpc.control.base.STATUSES`).
+
+        ``"ok"`` when solved with a finite solution; ``"infeasible"`` and ``"iteration_limit"``
+        where the solver says so; ``"numerical"`` for every other failure (see
+        :data:`QP_REASONS`), a non-finite "solution" included.
+        """
+        if self.solved:
+            return "ok" if bool(np.isfinite(self.x).all()) else "numerical"
+        return QP_REASONS[self.status] if self.status in QP_REASONS else "numerical"
+
 
 class DenseQP(ABC):
     """Common interface of the QP backends.
@@ -253,6 +265,20 @@ _DAQP_STATUS = {
     -5: "nonconvex",
     -6: "initial working set overdetermined",
     -7: "time limit",
+}
+
+#: Controller status of a failed QP by the solver's status (DAQP's words and OSQP's); others are
+#: ``"numerical"``. A time limit is never set here; should a solver report one, it is a budget.
+QP_REASONS: dict[str, str] = {
+    "infeasible": "infeasible",
+    "iteration limit": "iteration_limit",
+    "time limit": "iteration_limit",
+    "primal infeasible": "infeasible",
+    "primal infeasible inaccurate": "infeasible",
+    "dual infeasible": "infeasible",
+    "dual infeasible inaccurate": "infeasible",
+    "maximum iterations reached": "iteration_limit",
+    "run time limit reached": "iteration_limit",
 }
 
 

@@ -33,7 +33,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from rkmpc.control.base import Controller
+from rkmpc.control.base import AdmissibleErrors, Controller
 from rkmpc.control.guard import CommandGuard, SpeedFloor
 from rkmpc.core.errors import ParameterError
 from rkmpc.core.observation import Command, Observation
@@ -132,10 +132,13 @@ class Solution:
         when the solve failed (the guard then falls back).
     message : str
         Why it failed; empty on success.
+    reason : str
+        The failure's status (:data:`~rkmpc.control.base.STATUSES`), when ``plan`` is None.
     """
 
     plan: np.ndarray | None
     message: str = ""
+    reason: str = "fallback"
 
 
 class TrackingController(Controller):
@@ -152,21 +155,28 @@ class TrackingController(Controller):
         Input limits and steering-rate limit (and whatever the model needs).
     config : TrackingCost
         Horizon, period and weights (a subclass's configuration).
+    admissible : AdmissibleErrors, optional
+        Largest distance and heading error from the reference to drive at
+        (:class:`~rkmpc.control.base.AdmissibleErrors` defaults).
     """
 
-    def __init__(self, reference: Reference, vehicle: VehicleParams, config: TrackingCost) -> None:
-        super().__init__()
+    def __init__(
+        self,
+        reference: Reference,
+        vehicle: VehicleParams,
+        config: TrackingCost,
+        admissible: AdmissibleErrors | None = None,
+    ) -> None:
+        super().__init__(reference, vehicle.wheelbase, admissible)
         self.reference = reference
         self.vehicle = vehicle
         self.config = config
         self.dt = config.dt
         self._guard = CommandGuard(vehicle, config.dt, config.horizon, config.speed_floor)
-        self._s_hint: float | None = None
         #: Reference speed at the car's projection at the last step (m/s).
         self.reference_speed = math.nan
 
     def _reset(self) -> None:
-        self._s_hint = None
         self.reference_speed = math.nan
         self._guard.reset()
         self._reset_solver()
@@ -189,9 +199,7 @@ class TrackingController(Controller):
     def _track(self, observation: Observation) -> tuple[ReferenceHorizon, np.ndarray]:
         """Project the car, take the reference horizon and its inputs; set the previous command once."""
         cfg = self.config
-        proj = self.reference.project(observation.x, observation.y, self._s_hint)
-        self._s_hint = proj.s
-        ref = self.reference.horizon(proj.s, cfg.horizon, cfg.dt)
+        ref = self.reference.horizon(self._projected().s, cfg.horizon, cfg.dt)
         u_ref = self._reference_inputs(ref)
         self.reference_speed = float(u_ref[0, 0])
         if self._guard.previous is None:
@@ -231,6 +239,6 @@ class TrackingController(Controller):
             status, message = "ok", ""
         else:
             u = guard.fallback(u_ref[0])
-            status, message = "fallback", solution.message
+            status, message = solution.reason, solution.message
         u = guard.apply(u, self.reference_speed)
         return Command(speed=float(u[0]), steer=float(u[1])), status, message

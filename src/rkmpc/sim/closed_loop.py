@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from rkmpc.control.base import Controller
+from rkmpc.control.base import STATUS_CODES, Controller
 from rkmpc.core.angles import wrap_scalar
 from rkmpc.core.errors import ParameterError, PlantIntegrationError
 from rkmpc.core.observation import OBSERVATION_FIELDS, Command, Observation
@@ -21,8 +21,6 @@ from rkmpc.vehicle.plants.base import Plant
 #: Ways a run can end (``"plant_failure"``: the plant could not integrate a step, see
 #: :class:`rkmpc.core.errors.PlantIntegrationError`; the message is in :attr:`SimResult.failure`).
 OUTCOMES = ("completed", "off_track", "timeout", "diverged", "plant_failure")
-
-_STATUS_CODES = {"ok": 0.0, "fallback": 1.0}
 
 
 @dataclass(frozen=True)
@@ -76,6 +74,8 @@ class SimResult:
         Time of each completed lap (s).
     fallback_count : int
         Steps on which the controller fell back.
+    status_counts : dict of str to int
+        The controller's steps by status (:data:`rkmpc.control.base.STATUSES`).
     lap_length : float
         Length of one lap of the reference path (m).
     diagnostics : dict of str to float
@@ -90,6 +90,7 @@ class SimResult:
     lap_length: float
     lap_times: list[float] = field(default_factory=list)
     fallback_count: int = 0
+    status_counts: dict[str, int] = field(default_factory=dict)
     diagnostics: dict[str, float] = field(default_factory=dict)
     failure: str | None = None
 
@@ -210,6 +211,7 @@ def simulate(
     log.metadata["lap_times"] = lap_times
     diagnostics = controller.diagnostics()
     log.metadata["diagnostics"] = diagnostics
+    log.metadata["status_counts"] = dict(controller.status_counts)
     log.metadata["failure"] = failure
     return SimResult(
         log=log,
@@ -218,6 +220,7 @@ def simulate(
         lap_length=length,
         lap_times=lap_times,
         fallback_count=controller.fallback_count,
+        status_counts=dict(controller.status_counts),
         diagnostics=diagnostics,
         failure=failure,
     )
@@ -281,7 +284,7 @@ def _log_row(
         cmd = (math.nan, math.nan, math.nan, math.nan)
     else:
         info = controller.info
-        cmd = (command.speed, command.steer, info.solve_time_s, _STATUS_CODES.get(info.status, 2.0))
+        cmd = (command.speed, command.steer, info.solve_time_s, STATUS_CODES.get(info.status, math.nan))
     return np.concatenate(
         [
             (t, s, progress),

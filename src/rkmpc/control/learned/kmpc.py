@@ -54,6 +54,8 @@ class KoopmanMPC(TrackingController):
     name = "kmpc"
     #: The features the model was trained on (its recipe's), read from the live observation the same way.
     state = recipe_state("kmpc")
+    #: The model's state includes them: NaN (not measured) is refused as invalid input.
+    measured_fields = ("yaw_rate", "steer_angle")
     config: LMPCConfig
 
     def __init__(
@@ -86,7 +88,7 @@ class KoopmanMPC(TrackingController):
         previous = self.previous_command
         x0 = self.state.of_observation(observation)
         if not np.isfinite(x0).all():
-            return Solution(None, "kmpc needs measured speed, yaw rate and wheel angle")
+            return Solution(None, "kmpc needs measured speed, yaw rate and wheel angle", "invalid_input")
         z0 = self.model.lift(x0)
         local = reference_in_local_frame(ref, observation).reshape(-1)
         # f = 2 (M' Q (Mz z0 - local) - R u_ref - D' W d0) with d0 = [u_prev, 0, ...].
@@ -107,5 +109,5 @@ class KoopmanMPC(TrackingController):
             self._qp.update(f=f, lb=lb, ub=ub, lbA=lbA, ubA=ubA)
         result = self._qp.solve()
         if not result.solved or not np.isfinite(result.x).all():
-            return Solution(None, f"QP failed: {result.status}")
+            return Solution(None, f"QP failed: {result.status}", result.reason)
         return Solution(result.x.reshape(n, 2))

@@ -167,7 +167,7 @@ class _ResidualBase(Controller):
         config: ResidualMPCConfig | None = None,
         lmpc_config: LMPCConfig | None = None,
     ) -> None:
-        super().__init__()
+        super().__init__(reference, vehicle.wheelbase)
         self.reference = reference
         self.vehicle = vehicle
         self.model = model
@@ -237,14 +237,14 @@ class _ResidualBase(Controller):
         if self.lmpc.info.status != "ok" or pred is None:
             return (
                 self._apply(np.array([base.speed, base.steer]), np.zeros(2)),
-                "fallback",
+                self.lmpc.info.status,
                 self.lmpc.info.message,
             )
         plan = pred.plan.reshape(-1)
         try:
             H, f = self._residual_qp(observation, pred, plan)
         except FloatingPointError as exc:  # non-finite features: keep the baseline
-            return self._apply(np.array([base.speed, base.steer]), np.zeros(2)), "fallback", str(exc)
+            return self._apply(np.array([base.speed, base.steer]), np.zeros(2)), "guard", str(exc)
         lb = self._u_min - plan
         # The corrected speeds stay at or above the floor: the QP plans with it.
         np.subtract(self._guard.speed_floor(pred.u_ref[:, 0]), pred.plan[:, 0], out=lb[0::2])
@@ -264,7 +264,7 @@ class _ResidualBase(Controller):
         self._qp_hessian = H
         result = self._qp.solve()
         if not result.solved or not _all_finite(result.x):
-            return self._apply(plan[:2], np.zeros(2)), "fallback", f"residual QP failed: {result.status}"
+            return self._apply(plan[:2], np.zeros(2)), result.reason, f"residual QP failed: {result.status}"
         weight = 1.0 if self.trust is None else self.trust.trust
         return self._apply(plan[:2], weight * result.x[:2]), "ok", ""
 

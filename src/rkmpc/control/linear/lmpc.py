@@ -115,7 +115,9 @@ class LinearMPC(TrackingController):
             xi0=xi0, Phi=Phi, Gamma=Gamma, u_ref=u_ref, plan=plan, solved=solved, reference=ref
         )
         self.last_plan = plan if solved else None
-        return Solution(plan, "") if solved else Solution(None, f"QP failed: {result.status}")
+        if solved:
+            return Solution(plan, "")
+        return Solution(None, f"QP failed: {result.status}", result.reason)
 
     def _prediction(
         self, observation: Observation, ref: ReferenceHorizon, u_ref: np.ndarray

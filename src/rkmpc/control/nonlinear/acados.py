@@ -81,6 +81,10 @@ __all__ = ["QP_SOLVERS", "AcadosKinematicNMPC", "acados_cache_dir"]
 
 _LOG = logging.getLogger(__name__)
 
+#: Controller status of a failed RTI by acados' status code (2: ACADOS_MAXITER, 7: ACADOS_TIMEOUT);
+#: NaN detected (1), minimal step (3), QP failure (4) and any other code are ``"numerical"``.
+ACADOS_REASONS: dict[int, str] = {2: "iteration_limit", 7: "iteration_limit"}
+
 #: Bumped when the generated problem changes in a way the hash would not see.
 _CODE_VERSION = 2
 #: QP solvers the acados NMPCs accept.
@@ -359,7 +363,8 @@ class AcadosKinematicNMPC(KinematicNMPC):
         self.last_states = None
         message = f"acados RTI failed: status {self.last_status}"
         _LOG.debug("%s step %d: %s", self.name, self.step_count, message)
-        return Solution(None, message)
+        reason = "exception" if status_code == -1 else ACADOS_REASONS.get(status_code, "numerical")
+        return Solution(None, message, reason)
 
     def _initial_guess_rti(
         self, x0: np.ndarray, origin: np.ndarray, ref: ReferenceHorizon, u_ref: np.ndarray

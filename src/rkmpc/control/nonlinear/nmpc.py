@@ -47,7 +47,17 @@ from rkmpc.vehicle.params import VehicleParams
 if TYPE_CHECKING:
     from rkmpc.track.reference import Reference, ReferenceHorizon
 
-__all__ = ["SOLVERS", "DynamicNMPC", "KinematicNMPC", "NMPCConfig"]
+__all__ = ["NLP_REASONS", "SOLVERS", "DynamicNMPC", "KinematicNMPC", "NMPCConfig"]
+
+#: Controller status of a failed solve by IPOPT's (or the SQP method's) return status; any
+#: other failure is ``"numerical"`` (restoration failed, invalid number, step too small, ...).
+#: The CPU-time budget is off unless a user opts in; then it is a budget like the iterations.
+NLP_REASONS: dict[str, str] = {
+    "Infeasible_Problem_Detected": "infeasible",
+    "Maximum_Iterations_Exceeded": "iteration_limit",
+    "Maximum_CpuTime_Exceeded": "iteration_limit",
+    "Maximum_WallTime_Exceeded": "iteration_limit",
+}
 
 
 class KinematicNMPC(TrackingController):
@@ -183,7 +193,8 @@ class KinematicNMPC(TrackingController):
             return Solution(self.last_plan)
         self.last_plan = None
         self.last_states = None
-        return Solution(None, f"NLP failed: {status}")
+        reason = "exception" if status.startswith("exception") else NLP_REASONS.get(status, "numerical")
+        return Solution(None, f"NLP failed: {status}", reason)
 
     def _accept(self, stats: dict[str, Any], status: str) -> bool:
         """Whether a solve counts as successful."""

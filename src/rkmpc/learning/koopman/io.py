@@ -26,6 +26,7 @@ from rkmpc.core.errors import InputFileError, ParameterError
 from rkmpc.core.io import atomic_write, read_npz
 from rkmpc.core.jsonutil import json_default
 from rkmpc.learning.koopman.lifting import Lifting, MLPLifting, RBFLifting, lifting_from_params
+from rkmpc.learning.koopman.settings import TRAINING_THREADS
 
 __all__ = ["FORMAT_NAME", "FORMAT_VERSION", "READABLE_VERSIONS", "StoredModel", "read_model", "write_model"]
 
@@ -174,6 +175,7 @@ def write_model(path: str | Path, model: _Fitted, metadata: Mapping[str, Any] | 
         "params": model.get_params(),
         "fit_time_s": model.fit_time_s_,
         "epochs_run": model.epochs_run_,
+        "torch_threads": TRAINING_THREADS,
         "user": dict(metadata) if metadata is not None else {},
     }
     arrays: dict[str, np.ndarray] = {name: getattr(model, f"{name}_") for name in MATRICES}

@@ -10,7 +10,12 @@ from typing import ClassVar
 from rkmpc.core.errors import ParameterError
 from rkmpc.core.validation import is_integer
 
-__all__ = ["MLPTraining"]
+__all__ = ["TRAINING_THREADS", "MLPTraining"]
+
+#: Torch intra-op threads of every training, whatever the machine: sums in another order give
+#: another model, so a fixed count makes models identical everywhere (and one thread is also the
+#: fastest for these small batches on a shared machine). Recorded in every model file.
+TRAINING_THREADS = 1
 
 
 @dataclass(frozen=True)

@@ -7,7 +7,6 @@ back as numpy arrays). :mod:`rkmpc.learning.koopman.training` puts them together
 
 from __future__ import annotations
 
-import os
 from collections.abc import Iterator
 from contextlib import contextmanager
 
@@ -15,6 +14,7 @@ import numpy as np
 import torch
 
 from rkmpc.core.errors import ParameterError
+from rkmpc.learning.koopman.settings import TRAINING_THREADS
 
 __all__ = [
     "make_torch_mlp",
@@ -39,18 +39,15 @@ def torch_runtime(threads: int | None = None, deterministic: bool = True) -> Ite
     Parameters
     ----------
     threads : int, optional
-        Intra-op threads; default ``min(2, os.cpu_count(), torch.get_num_threads())``, so a
-        process that limited torch to one thread (a parallel worker) keeps one: two
-        processes each spinning two threads on two cores slow small-batch training down
-        about tenfold.
+        Intra-op threads; default :data:`~rkmpc.learning.koopman.settings.TRAINING_THREADS`
+        (1) on every machine, so that a model does not depend on the machine's cores or load.
     deterministic : bool
         Whether to call ``torch.use_deterministic_algorithms(True)`` for the duration.
     """
     old_threads = torch.get_num_threads()
     old_det = torch.are_deterministic_algorithms_enabled()
     old_warn = torch.is_deterministic_algorithms_warn_only_enabled()
-    default = max(1, min(2, os.cpu_count() or 1, old_threads))
-    torch.set_num_threads(threads if threads is not None else default)
+    torch.set_num_threads(threads if threads is not None else TRAINING_THREADS)
     if deterministic:
         torch.use_deterministic_algorithms(True, warn_only=True)
     try:
