@@ -204,10 +204,18 @@ class CarDriver:
                 replace(base, state="controller_error", message=self.last_error), add_to_history=True
             )
         info = self.controller.info
+        # The controller's base class catches its own failures and answers them with a stop; the
+        # node counts them by the status it reports, as it counts the failures it catches itself.
+        if info.status == "exception":
+            self.controller_errors += 1
+            self.last_error = info.message
+            return self._send(
+                replace(base, state="controller_error", message=info.message), add_to_history=True
+            )
         checked, state = self.safety.checked_command(command)
-        if state != "running":
+        if state != "running" or info.status == "nonfinite_command":
             self.nonfinite_commands += 1
-            checked = base.command
+            checked, state = base.command, "nonfinite_command"
         decision = replace(
             base,
             command=checked,

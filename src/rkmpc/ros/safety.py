@@ -29,6 +29,7 @@ from __future__ import annotations
 import math
 from collections import Counter
 
+from rkmpc.control.base import stop_command
 from rkmpc.core.observation import Command
 from rkmpc.ros.config import SafetySettings
 
@@ -44,11 +45,6 @@ STATES = (
     "nonfinite_command",
     "shutdown",
 )
-
-
-def stop_command(previous: Command | None) -> Command:
-    """Speed 0 (m/s), the wheel held at the previous command's angle (rad; straight when none)."""
-    return Command(0.0, 0.0 if previous is None else float(previous.steer))
 
 
 class SafetyMonitor:
