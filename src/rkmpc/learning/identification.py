@@ -158,7 +158,7 @@ class IdentifiedModel:
 
         def check_range(field: str, value: object, bounds: tuple[float, float], unit: str) -> None:
             low, high = bounds
-            if not (isinstance(value, numbers.Real) and not isinstance(value, bool) and low <= value <= high):
+            if not (number(value) and low <= float(value) <= high):  # type: ignore[arg-type]
                 raise ParameterError(
                     f"{name}.{field} must be a number in [{low:g}, {high:g}] {unit} (plausible for a car), "
                     f"got {value!r}"
