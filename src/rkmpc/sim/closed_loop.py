@@ -176,8 +176,8 @@ def simulate(
     max_steps = math.ceil(max_time / cfg.dt) + 1
     if not max_steps <= MAX_STEPS:
         raise ParameterError(
-            f"simulate: the time limit of {max_time:.4g} s would allow {max_steps:.4g} steps of {cfg.dt:g} s, "
-            f"more than {MAX_STEPS:.0e}: is the track ({length:.4g} m) too long, or the time limit?"
+            f"simulate: the time limit of {max_time:.4g} s would allow {max_steps:.4g} steps of "
+            f"{cfg.dt:g} s, more than {MAX_STEPS:.0e}: is the track ({length:.4g} m) too long, or the time limit?"
         )
     log = StepLog(log_columns(plant.STATE_NAMES), capacity=min(max_steps, 20000))
     names = plant.STATE_NAMES
