@@ -177,7 +177,8 @@ def simulate(
     if not max_steps <= MAX_STEPS:
         raise ParameterError(
             f"simulate: the time limit of {max_time:.4g} s would allow {max_steps:.4g} steps of "
-            f"{cfg.dt:g} s, more than {MAX_STEPS:.0e}: is the track ({length:.4g} m) too long, or the time limit?"
+            f"{cfg.dt:g} s, more than {MAX_STEPS:.0e}: is the track ({length:.4g} m) too long, "
+            "or the time limit?"
         )
     log = StepLog(log_columns(plant.STATE_NAMES), capacity=min(max_steps, 20000))
     names = plant.STATE_NAMES
