@@ -320,6 +320,9 @@ def test_train_identified_reports_identification_warnings_in_its_output(tmp_path
     obs = np.zeros((n + 1, 7))
     obs[:, 3], obs[:, 6], obs[:, 5] = 3.0, 0.1, np.nan
     obs[:, 4] = 3.0 * np.tan(0.1) / 0.4
+    obs[:, 2] = obs[:, 4] * 0.05 * np.arange(n + 1)  # on a circle of radius 3 / yaw_rate
+    obs[:, 0] = 3.0 / obs[0, 4] * np.sin(obs[:, 2])
+    obs[:, 1] = 3.0 / obs[0, 4] * (1.0 - np.cos(obs[:, 2]))
     command = np.column_stack([np.full(n, 3.0), np.full(n, 0.1)])
     data = tmp_path / "data.npz"
     TransitionDataset(obs[:-1], command, obs[1:], 0.05, np.zeros(n, dtype=int)).save(data)

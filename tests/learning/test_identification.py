@@ -8,6 +8,7 @@ follow a kinematic car with understeer gradient 0.01 s^2/m.
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Callable
 
 import numpy as np
@@ -15,7 +16,12 @@ import pytest
 
 from rkmpc.core.errors import IdentificationWarning, ParameterError
 from rkmpc.learning.data.dataset import TransitionDataset
-from rkmpc.learning.identification import UNDERSTEER_RANGE, command_history, identify
+from rkmpc.learning.identification import (
+    TIME_CONSTANT_RANGE,
+    UNDERSTEER_RANGE,
+    command_history,
+    identify,
+)
 from rkmpc.learning.servo_fit import SERVO_MIN_R2
 from rkmpc.vehicle.params import f1tenth
 
@@ -270,3 +276,18 @@ def test_command_history_stops_at_episode_starts():
 def _quiet_identify(data: TransitionDataset):
     with pytest.warns(IdentificationWarning):
         return identify(data, VEHICLE)
+
+
+def test_25_noisy_samples_never_give_an_implausible_servo(cmd, lag_wheel):
+    # Issue 13: 25 samples once wrote a time constant of 1.4e7 s with R^2 = -0.017.
+    n = 25
+    noisy = lag_wheel[: n + 1] + 0.02 * np.random.default_rng(7).standard_normal(n + 1)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        model = identify(dataset(cmd[:n], lag_wheel[: n + 1], measured=noisy), VEHICLE)
+    assert TIME_CONSTANT_RANGE[0] <= model.servo_time_constant <= 1.0
+    if model.servo_structure == "nominal":
+        assert model.servo_time_constant == VEHICLE.steering.time_constant
+        assert any("servo" in str(w.message) for w in caught)
+    else:
+        assert model.servo_fit_r2 >= SERVO_MIN_R2

@@ -251,6 +251,28 @@ def test_identified_non_positive_servo_time_constant(tmp_path, tau):
         assert "servo_time_constant" in info.value.problem
 
 
+@pytest.mark.parametrize(
+    ("field", "value"),
+    [
+        ("understeer_gradient", -5.0),
+        ("understeer_gradient", 1e6),
+        ("servo_time_constant", 1.4e7),
+        ("servo_time_constant", 1e-6),
+        ("servo_delay", 3.0),
+        ("servo_rate_limit", 1e9),
+    ],
+)
+def test_hand_edited_implausible_parameters_are_refused(tmp_path, field, value):
+    # Issue 13: K = -5 and K = 1e6 were accepted.
+    path = tmp_path / "model.json"
+    _write(path, _payload(model=_model_fields(**{field: value})))
+    with pytest.raises(
+        InputFileError, match=rf"model\.json \[model\]: IdentifiedModel\.{field} must be a number in"
+    ) as info:
+        load_identified(path)
+    assert "plausible" in info.value.problem
+
+
 def test_identified_non_finite_understeer_gradient(tmp_path):
     path = tmp_path / "model.json"
     path.write_text(json.dumps(_payload(model=_model_fields(understeer_gradient=float("inf")))))

@@ -148,3 +148,12 @@ def test_a_run_that_ends_normally_records_no_failure(builtin_scenario):
     )
     assert result.failure is None
     assert result.log.metadata["failure"] is None
+
+
+def test_a_time_limit_beyond_max_steps_is_refused_before_the_run(builtin_scenario):
+    # Issue 13: a track x1e9 ran for ~5e11 s of simulated time with no output.
+    sc = builtin_scenario
+    with pytest.raises(ParameterError, match=r"simulate: the time limit of 1e\+09 s would allow .* steps"):
+        simulate(
+            make_plant("f1tenth"), ConstantSteer(1.0, 0.0), sc.track, sc.reference, SimConfig(max_time=1e9)
+        )

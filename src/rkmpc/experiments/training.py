@@ -9,6 +9,7 @@ from pathlib import Path
 from rkmpc.core.errors import ParameterError
 from rkmpc.learning.contract import CONTRACT_KEY, Provenance
 from rkmpc.learning.data.dataset import TransitionDataset
+from rkmpc.learning.data.plausibility import check_learnable
 from rkmpc.learning.identification import IdentifiedModel, identify
 from rkmpc.learning.io import save_identified
 from rkmpc.learning.pipeline import TrainConfig, train_model
@@ -84,6 +85,8 @@ def train_to_file(
     ------
     ContractError
         When the data were recorded with another car, wheelbase or period, unless ``allow_mismatch``.
+    InputFileError
+        For data no model should be learned from (:func:`rkmpc.learning.data.plausibility.check_learnable`).
     """
     recipe = recipe_of_kind(kind)
     if made_for.wheelbase is None:
@@ -91,6 +94,7 @@ def train_to_file(
     wheelbase = made_for.wheelbase
     if recipe.learner == "identification":
         warned = data.contract.check(made_for, source=source, made="recorded", allow_mismatch=allow_mismatch)
+        check_learnable(data, wheelbase, source)
         ident = identify(data, vehicle)
         contract = replace(data.contract, dt=data.dt, wheelbase=wheelbase, recorded=True)
         metadata = {

@@ -35,8 +35,9 @@ import numpy as np
 
 from rkmpc.core.errors import IdentificationWarning, ParameterError
 from rkmpc.core.observation import OBSERVATION_FIELDS
-from rkmpc.core.validation import is_integer, is_positive_number
+from rkmpc.core.validation import is_integer
 from rkmpc.learning.servo_fit import (
+    MAX_DELAY,
     SERVO_MIN_R2,
     SERVO_STRUCTURES,
     ServoFit,
@@ -48,7 +49,9 @@ from rkmpc.vehicle.params import VehicleParams
 
 __all__ = [
     "MIN_TRANSITIONS",
+    "RATE_LIMIT_RANGE",
     "SERVO_STRUCTURE_NAMES",
+    "TIME_CONSTANT_RANGE",
     "UNDERSTEER_MIN_R2",
     "UNDERSTEER_RANGE",
     "IdentifiedModel",
@@ -72,6 +75,12 @@ SERVO_STRUCTURE_NAMES: tuple[str, ...] = (*(s.name for s in SERVO_STRUCTURES), "
 #: does not depend on the size of the car. Besides, the car cannot have been beyond its critical
 #: speed ``sqrt(-L / K)`` in its own data: K >= -L / (2 v_max^2), v_max the fastest speed fitted.
 UNDERSTEER_RANGE = (-0.02, 0.1)
+#: Range of servo time constants (s) an identified model may hold: a factor beyond the fit's own
+#: search range (5 ms to 1 s, :data:`~rkmpc.learning.servo_fit.SERVO_PARAMETERS`) either way, so the
+#: nominal lag of any real car fits too. Checked on every model, also one read from a file.
+TIME_CONSTANT_RANGE = (1e-3, 2.0)
+#: Range of servo rate limits (rad/s) an identified model may hold (the fit searches 0.1 to 20).
+RATE_LIMIT_RANGE = (0.01, 100.0)
 #: An understeer fit explaining less than this share of the excess wheel angle is not used.
 UNDERSTEER_MIN_R2 = 0.3
 #: RMS wheel-angle change per period (rad) below which the servo is not excited enough to fit.
@@ -122,6 +131,13 @@ class IdentifiedModel:
         Largest wheel rate (rad/s), None when the servo showed none.
     warnings : tuple of str
         What identification could not support and what it did instead, in words.
+
+    Raises
+    ------
+    ParameterError
+        Naming the field, for a value no car has (a hand-edited file): a time constant beyond
+        :data:`TIME_CONSTANT_RANGE`, a gradient beyond :data:`UNDERSTEER_RANGE`, a delay beyond
+        ``[0, MAX_DELAY]`` or a rate limit beyond :data:`RATE_LIMIT_RANGE`.
     """
 
     servo_time_constant: float
@@ -139,14 +155,17 @@ class IdentifiedModel:
             return isinstance(value, numbers.Real) and not isinstance(value, bool)
 
         name = "IdentifiedModel"
-        if not is_positive_number(self.servo_time_constant):
-            raise ParameterError(
-                f"{name}.servo_time_constant must be finite and > 0, got {self.servo_time_constant!r}"
-            )
-        if not (number(self.understeer_gradient) and math.isfinite(self.understeer_gradient)):
-            raise ParameterError(
-                f"{name}.understeer_gradient must be finite, got {self.understeer_gradient!r}"
-            )
+
+        def check_range(field: str, value: object, bounds: tuple[float, float], unit: str) -> None:
+            low, high = bounds
+            if not (number(value) and low <= float(value) <= high):  # type: ignore[arg-type]
+                raise ParameterError(
+                    f"{name}.{field} must be a number in [{low:g}, {high:g}] {unit} (plausible for a car), "
+                    f"got {value!r}"
+                )
+
+        check_range("servo_time_constant", self.servo_time_constant, TIME_CONSTANT_RANGE, "s")
+        check_range("understeer_gradient", self.understeer_gradient, UNDERSTEER_RANGE, "s^2/m")
         for field in ("servo_fit_r2", "understeer_fit_r2"):
             value = getattr(self, field)
             if value is None:  # JSON's null: no fit was made
@@ -159,11 +178,9 @@ class IdentifiedModel:
             raise ParameterError(
                 f"{name}.servo_structure must be one of {SERVO_STRUCTURE_NAMES}, got {self.servo_structure!r}"
             )
-        if not (number(self.servo_delay) and math.isfinite(self.servo_delay) and self.servo_delay >= 0):
-            raise ParameterError(f"{name}.servo_delay must be finite and >= 0, got {self.servo_delay!r}")
-        rate = self.servo_rate_limit
-        if rate is not None and not is_positive_number(rate):
-            raise ParameterError(f"{name}.servo_rate_limit must be None or finite and > 0, got {rate!r}")
+        check_range("servo_delay", self.servo_delay, (0.0, MAX_DELAY), "s")
+        if self.servo_rate_limit is not None:
+            check_range("servo_rate_limit", self.servo_rate_limit, RATE_LIMIT_RANGE, "rad/s")
         if not isinstance(self.warnings, (tuple, list)) or not all(isinstance(w, str) for w in self.warnings):
             raise ParameterError(f"{name}.warnings must be a sequence of strings, got {self.warnings!r}")
         object.__setattr__(self, "warnings", tuple(self.warnings))

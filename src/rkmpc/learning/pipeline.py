@@ -25,6 +25,7 @@ from rkmpc.core.versions import RKMPC_VERSION
 from rkmpc.learning.contract import CONTRACT_KEY, Provenance
 from rkmpc.learning.data.augmentation import AugmentConfig, LocalWindows, local_frame_windows
 from rkmpc.learning.data.dataset import TransitionDataset
+from rkmpc.learning.data.plausibility import check_learnable
 from rkmpc.learning.data.residuals import control_residuals
 from rkmpc.learning.features import FeatureMap, previous_commands
 from rkmpc.learning.koopman.model import KoopmanModel
@@ -183,6 +184,10 @@ def train_model(
     ------
     ContractError
         When the data were recorded with another car, wheelbase or period, unless ``allow_mismatch``.
+    InputFileError
+        Naming ``source``, the field and the rows, for data no model should be learned from: the car
+        stood still, the transitions do not match the speeds, the heading is not the direction of
+        motion, or a feature is not finite (:func:`rkmpc.learning.data.plausibility.check_learnable`).
     """
     cfg = config if config is not None else TrainConfig()
     recipe = recipe_of_kind(cfg.kind)
@@ -193,6 +198,7 @@ def train_model(
         made="recorded",
         allow_mismatch=allow_mismatch,
     )
+    check_learnable(data, wheelbase, source, () if recipe.state is None else recipe.state.names)
     windows = local_frame_windows(data, cfg.augment)
     n_hold = round(cfg.holdout * windows.n_windows) if windows.n_windows > 4 else 0
     split = windows.n_windows - n_hold

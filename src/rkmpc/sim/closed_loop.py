@@ -21,6 +21,10 @@ from rkmpc.vehicle.plants.base import Plant
 #: Ways a run can end (``"plant_failure"``: the plant could not integrate a step, see
 #: :class:`rkmpc.core.errors.PlantIntegrationError`; the message is in :attr:`SimResult.failure`).
 OUTCOMES = ("completed", "off_track", "timeout", "diverged", "plant_failure")
+#: Most steps a run may take: 2 million, over 27 hours of driving at 20 Hz. A longer time limit
+#: (a track in the wrong unit, a huge ``--scale``) is refused before the run rather than left to
+#: run for days with no output.
+MAX_STEPS = 2_000_000
 
 
 @dataclass(frozen=True)
@@ -40,7 +44,8 @@ class SimConfig:
         from standstill with straight wheels (False).
     max_time : float or None
         Time limit (s); None means three times the profile's lap time per lap
-        plus 10 s. Reaching it ends the run as ``"timeout"``.
+        plus 10 s. Reaching it ends the run as ``"timeout"``. A limit above :data:`MAX_STEPS`
+        periods is refused by :func:`simulate`.
     """
 
     dt: float = 0.05
@@ -54,8 +59,8 @@ class SimConfig:
             raise ParameterError(f"SimConfig.dt must be > 0, got {self.dt}")
         if self.laps < 1:
             raise ParameterError(f"SimConfig.laps must be >= 1, got {self.laps}")
-        if self.max_time is not None and not self.max_time > 0:
-            raise ParameterError(f"SimConfig.max_time must be > 0, got {self.max_time}")
+        if self.max_time is not None and not (math.isfinite(self.max_time) and self.max_time > 0):
+            raise ParameterError(f"SimConfig.max_time must be finite and > 0, got {self.max_time}")
 
 
 @dataclass
@@ -169,6 +174,12 @@ def simulate(
     lap_time = reference.profile.lap_time
     max_time = cfg.max_time if cfg.max_time is not None else 3.0 * cfg.laps * lap_time + 10.0
     max_steps = math.ceil(max_time / cfg.dt) + 1
+    if not max_steps <= MAX_STEPS:
+        raise ParameterError(
+            f"simulate: the time limit of {max_time:.4g} s would allow {max_steps:.4g} steps of "
+            f"{cfg.dt:g} s, more than {MAX_STEPS:.0e}: is the track ({length:.4g} m) too long, "
+            "or the time limit?"
+        )
     log = StepLog(log_columns(plant.STATE_NAMES), capacity=min(max_steps, 20000))
     names = plant.STATE_NAMES
     pose_index = (names.index("x"), names.index("y"), names.index("yaw"))

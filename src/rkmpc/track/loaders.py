@@ -35,7 +35,7 @@ from scipy.spatial import cKDTree
 from rkmpc.core.errors import InputFileError, ParameterError
 from rkmpc.track.path import Path
 from rkmpc.track.points import dedupe_mask
-from rkmpc.track.track import Track
+from rkmpc.track.track import Track, track_length_problem
 
 __all__ = [
     "CLOSING_GAP_FACTOR",
@@ -52,6 +52,13 @@ CLOSING_GAP_FACTOR = 4.0
 
 _CENTER_COLUMNS = ("x_m", "y_m", "w_tr_right_m", "w_tr_left_m")
 _RACE_COLUMNS = ("x_m", "y_m")
+
+
+def _check_length(file: FilePath, line: Path) -> None:
+    """InputFileError naming ``file`` when ``line`` is too long for a track (:data:`MAX_TRACK_LENGTH`)."""
+    problem = track_length_problem(line.length)
+    if problem is not None:
+        raise InputFileError(file, problem, field="x_m,y_m")
 
 
 def _check_scale(scale: float) -> float:
@@ -289,6 +296,7 @@ def load_centerline(path: str | FilePath, *, scale: float = 1.0, name: str | Non
     wl = factor * cols["w_tr_left_m"][keep]
     track_name = file.stem if name is None else name
     centerline = Path.from_points(xy, name=track_name, source=str(file))
+    _check_length(file, centerline)
     # Resample the widths onto a uniform arc-length grid (same number of samples as points).
     length = centerline.length
     s_pts = np.append(centerline.knot_s, length)
@@ -327,7 +335,9 @@ def load_raceline(path: str | FilePath, *, scale: float = 1.0, name: str | None 
     cols = _read_columns(file, _RACE_COLUMNS)
     keep = _validate_loop(file, cols, ())
     xy = factor * np.column_stack([cols["x_m"][keep], cols["y_m"][keep]])
-    return Path.from_points(xy, name=file.stem if name is None else name, source=str(file))
+    raceline = Path.from_points(xy, name=file.stem if name is None else name, source=str(file))
+    _check_length(file, raceline)
+    return raceline
 
 
 def load_track(

@@ -11,7 +11,23 @@ from numpy.typing import ArrayLike, NDArray
 from rkmpc.core.errors import ParameterError
 from rkmpc.track.path import Path
 
-__all__ = ["Track", "WidthSpec"]
+__all__ = ["MAX_TRACK_LENGTH", "Track", "WidthSpec", "track_length_problem"]
+
+#: Longest track (m) rkmpc drives: 100 km, five times the longest race circuit (the Nordschleife,
+#: about 21 km). A longer line has coordinates in another unit or a wrong ``--scale``, and a run on
+#: it would take days of simulated time with no output.
+MAX_TRACK_LENGTH = 100_000.0
+
+
+def track_length_problem(length: float) -> str | None:
+    """Why a line ``length`` m long is no track (None when it is fine)."""
+    if math.isfinite(length) and length <= MAX_TRACK_LENGTH:
+        return None
+    return (
+        f"the line is {length:.4g} m long, more than {MAX_TRACK_LENGTH / 1000:g} km: coordinates in "
+        "another unit (mm?) or a wrong scale?"
+    )
+
 
 FloatArray = NDArray[np.float64]
 
@@ -81,7 +97,7 @@ class Track:
     Raises
     ------
     ParameterError
-        If a width is not finite and positive.
+        If a width is not finite and positive, or a line is longer than :data:`MAX_TRACK_LENGTH`.
     """
 
     def __init__(
@@ -97,6 +113,10 @@ class Track:
     ) -> None:
         if not (math.isfinite(scale) and scale > 0.0):
             raise ParameterError(f"Track: scale must be finite and > 0, got {scale!r}")
+        for line in (centerline, raceline):
+            problem = None if line is None else track_length_problem(line.length)
+            if problem is not None:
+                raise ParameterError(f"Track {name!r}: {problem}")
         self.name = name
         self.centerline = centerline
         self.raceline = raceline
