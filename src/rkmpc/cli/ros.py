@@ -23,6 +23,16 @@ def add_ros_parsers(sub: Any) -> None:
         "--out", type=Path, default=None, help="folder for what the node decided, written at exit"
     )
     node.add_argument(
+        "--record",
+        type=Path,
+        default=None,
+        metavar="BAG",
+        help="record the odometry, wheel angles and commands to this new ROS 2 bag folder (record.bag)",
+    )
+    node.add_argument(
+        "--record-storage", default=None, choices=["mcap", "sqlite3"], help="the bag's storage (mcap)"
+    )
+    node.add_argument(
         "--ros-args", dest="ros_args", nargs=argparse.REMAINDER, default=None, help=_ROS_ARGS_HELP
     )
 
@@ -80,7 +90,13 @@ def cmd_node(args: argparse.Namespace) -> int:
         from rkmpc.ros.node import run_node
     except ImportError as exc:
         raise _missing_ros(exc) from None
-    return run_node(args.config, out=args.out, ros_args=_ros_args(args))
+    return run_node(
+        args.config,
+        out=args.out,
+        record=args.record,
+        record_storage=args.record_storage,
+        ros_args=_ros_args(args),
+    )
 
 
 def cmd_sim_node(args: argparse.Namespace) -> int:
