@@ -37,7 +37,6 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-import rkmpc
 from rkmpc.core.errors import ParameterError, RkmpcError
 from rkmpc.core.io import write_json_atomic
 from rkmpc.ros.sim_config import CLOCKS
@@ -278,7 +277,7 @@ def _stages(run: _Run) -> dict[str, Any]:
 def _environment(config: WorkflowConfig, out: Path) -> dict[str, str]:
     """The processes' environment: this rkmpc first on the path, localhost-only ROS 2, its own domain."""
     env = dict(os.environ)
-    source = str(Path(rkmpc.__file__).resolve().parents[1])
+    source = str(Path(__file__).resolve().parents[2])  # the folder this rkmpc package is in
     env["PYTHONPATH"] = os.pathsep.join([source, *filter(None, [env.get("PYTHONPATH")])])
     domain = config.domain_id if config.domain_id is not None else 1 + os.getpid() % 101
     env.update(
