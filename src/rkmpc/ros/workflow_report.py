@@ -10,9 +10,9 @@ Table II's columns: mean lateral error (m), mean heading error (rad), mean rate 
 front wheel angle (rad/s), the controller's step time in the node (median and 99th percentile,
 ms), and the latency odometry -> command (median, 99th percentile, ms). The latency is what
 the clock lets one measure: in lock-step the round trip at the car, from publishing an odometry
-to receiving the command that answers it (wall clock, ``sim-node``); in real time the age of the
-odometry at the node when the first command made from it is sent (including the wait for the
-node's 20 Hz timer).
+to receiving the command that answers it (wall clock, ``sim-node``); in real time from an
+odometry's arrival at the node to the first command made from it (the wait for the node's 20 Hz
+timer and the controller's step).
 """
 
 from __future__ import annotations
@@ -50,7 +50,7 @@ _HEADER = (
 )
 _LATENCY = {
     "lockstep": "round trip at the car: odometry published -> its command received (sim-node, wall clock)",
-    "realtime": "age of the odometry at the node when the first command made from it is sent",
+    "realtime": "odometry's arrival at the node -> the first command made from it sent (node, wall clock)",
 }
 
 
