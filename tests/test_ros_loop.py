@@ -248,3 +248,13 @@ def test_the_node_stops_the_car_when_its_odometry_dies(tmp_path, ros_env, monkey
     assert len(streams.odom) >= sum(r["fresh"] == "1" for r in rows)
     data = import_bag(bag, f1tenth(), BagImportConfig(min_samples=10))
     assert len(data) >= 10 and np.all(np.isfinite(data.obs[:, :5]))
+
+
+def test_a_bag_name_may_carry_the_start_time():
+    import datetime
+
+    from rkmpc.ros.bag_record import bag_path
+
+    moment = datetime.datetime(2025, 1, 31, 14, 25, 1)
+    assert bag_path("runs/laps-{time}", moment) == Path("runs/laps-20250131-142501")
+    assert bag_path("runs/laps", moment) == Path("runs/laps")
