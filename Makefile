@@ -3,7 +3,7 @@ PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 
-.PHONY: ros demo test test-slow test-all lint bench bench-breakdown tracks-table learning-table study-tracks study-cars study-data faults results clean
+.PHONY: ros car-loop demo test test-slow test-all lint bench bench-breakdown tracks-table learning-table study-tracks study-cars study-data faults results clean
 
 # PyTorch first and pinned exactly: a looser pin pulls a multi-gigabyte CUDA build.
 $(BIN)/python:
@@ -28,6 +28,12 @@ $(VENV)/.installed-ros: pyproject.toml $(ROS_MSGS) | $(BIN)/python
 	touch $@
 
 ros: $(VENV)/.installed-ros
+
+# The paper's on-car workflow over ROS 2 on this machine (docs/car.md): two LMPC laps recorded to a
+# bag by the node, the residual and identified models trained from it, LMPC, lmpc-id and RKMPC a lap
+# each, then 50 ms of added actuation delay with and without compensation. Table II: runs/car-loop/table2.md.
+car-loop: $(VENV)/.installed $(VENV)/.installed-ros
+	$(BIN)/rkmpc car-loop --out runs/car-loop --force
 
 # The paper's Table I on the built-in track: two LMPC laps of data, the residual models and
 # lmpc-id learned from them, the KMPC model (trained once, then cached), then every controller.

@@ -47,6 +47,7 @@ CONFINED = {
     "nav_msgs": ("rkmpc.ros.",),
     "std_msgs": ("rkmpc.ros.",),
     "diagnostic_msgs": ("rkmpc.ros.",),
+    "builtin_interfaces": ("rkmpc.ros.",),
     "yaml": ("rkmpc.ros.config",),
 }
 

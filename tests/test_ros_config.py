@@ -50,6 +50,15 @@ def test_sections_paths_and_overrides(tmp_path):
     assert flat["safety.odometry_timeout"] == 1.0 and flat["topics.drive"] == "/drive"
 
 
+def test_the_recorded_bag_is_relative_to_the_file_and_its_storage_checked(tmp_path):
+    assert load_node_config(write(tmp_path, "")).record.bag is None
+    config = load_node_config(write(tmp_path, "record: {bag: 'bags/run-{time}', storage: sqlite3}\n"))
+    assert config.record.bag == str(tmp_path / "bags/run-{time}") and config.record.storage == "sqlite3"
+    with pytest.raises(InputFileError, match="storage must be one of") as info:
+        load_node_config(write(tmp_path, "record: {storage: ros1}\n"))
+    assert info.value.field == "record"
+
+
 def test_built_in_track_names_stay_names(tmp_path):
     assert load_node_config(write(tmp_path, "track: oval\n")).track == "oval"
 

@@ -20,6 +20,7 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 pytest.importorskip("rclpy", reason="ROS 2 is not installed (make ros)", exc_type=ImportError)
@@ -32,18 +33,23 @@ SRC = Path(__file__).resolve().parents[1] / "src"
 HANG = 300.0
 
 
-@pytest.fixture
-def ros_env(tmp_path, request):
-    """The environment of the test's ROS processes: localhost only, a domain id of its own."""
-    domain = 1 + (os.getpid() * 31 + sum(map(ord, request.node.name))) % 200
+def ros_environment(log_dir: Path, name: str) -> dict[str, str]:
+    """The environment of ROS processes: localhost only, a domain id of their own, logs in ``log_dir``."""
+    domain = 1 + (os.getpid() * 31 + sum(map(ord, name))) % 200
     env = dict(os.environ)
     env.update(
         PYTHONPATH=os.pathsep.join([str(SRC), *filter(None, [env.get("PYTHONPATH")])]),
         ROS_DOMAIN_ID=str(domain),
         ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
-        ROS_LOG_DIR=str(tmp_path / "ros-log"),
+        ROS_LOG_DIR=str(log_dir),
     )
     return env
+
+
+@pytest.fixture
+def ros_env(tmp_path, request):
+    """The environment of the test's ROS processes."""
+    return ros_environment(tmp_path / "ros-log", request.node.name)
 
 
 def start(args: list[str], env: dict[str, str], log: Path) -> subprocess.Popen:
@@ -69,26 +75,24 @@ def node_rows(folder: Path) -> list[dict[str, str]]:
         return list(csv.DictReader(f))
 
 
-def test_a_lap_over_ros_in_lock_step_matches_the_in_process_run(tmp_path, ros_env):
-    from rkmpc.analysis.metrics import lap_metrics
-    from rkmpc.sim.run import RunSpec, drive
-    from rkmpc.sim.scenario import load_scenario
+STEERING = "/rkmpc/steering"
 
-    car = tmp_path / "car.yaml"
-    car.write_text("controller: lmpc\ntrigger: odometry\ntopics: {steering: /rkmpc/steering}\n")
-    node_log, sim_log = tmp_path / "node.log", tmp_path / "sim.log"
-    node = start(["node", "--config", str(car), "--out", str(tmp_path / "node")], ros_env, node_log)
+
+@pytest.fixture(scope="module")
+def lap(tmp_path_factory):
+    """A lap of the built-in track over ROS 2 in lock-step with the LMPC, recorded to a bag by the node."""
+    folder = tmp_path_factory.mktemp("lap")
+    env = ros_environment(folder / "ros-log", "lap")
+    car = folder / "car.yaml"
+    car.write_text(f"controller: lmpc\ntrigger: odometry\ntopics: {{steering: {STEERING}}}\n")
+    node_log, sim_log = folder / "node.log", folder / "sim.log"
+    node_args = ["node", "--config", str(car), "--out", str(folder / "node"), "--record", str(folder / "bag")]
+    node = start(node_args, env, node_log)
     try:
-        sim_args = ["sim-node", "--clock", "lockstep", "--laps", "1", "--steering-topic", "/rkmpc/steering"]
-        sim_args += [
-            "--startup-timeout",
-            str(HANG),
-            "--answer-timeout",
-            str(HANG),
-            "--out",
-            str(tmp_path / "sim"),
-        ]
-        sim = start(sim_args, ros_env, sim_log)
+        sim_args = ["sim-node", "--clock", "lockstep", "--laps", "1", "--steering-topic", STEERING]
+        sim_args += ["--startup-timeout", str(HANG), "--answer-timeout", str(HANG)]
+        sim_args += ["--out", str(folder / "sim")]
+        sim = start(sim_args, env, sim_log)
         try:
             code = sim.wait(timeout=HANG)
         finally:
@@ -98,7 +102,15 @@ def test_a_lap_over_ros_in_lock_step_matches_the_in_process_run(tmp_path, ros_en
         node_code = finish(node, node_log)
     assert code == 0, sim_log.read_text()
     assert node_code == 0, node_log.read_text()
-    summary = json.loads((tmp_path / "sim" / "summary.json").read_text())
+    return folder
+
+
+def test_a_lap_over_ros_in_lock_step_matches_the_in_process_run(lap):
+    from rkmpc.analysis.metrics import lap_metrics
+    from rkmpc.sim.run import RunSpec, drive
+    from rkmpc.sim.scenario import load_scenario
+
+    summary = json.loads((lap / "sim" / "summary.json").read_text())
     over_ros = summary["metrics"]
     in_process = lap_metrics(drive(load_scenario("builtin"), RunSpec("lmpc")))
     assert summary["outcome"] == "completed" and over_ros["completed"]
@@ -106,12 +118,53 @@ def test_a_lap_over_ros_in_lock_step_matches_the_in_process_run(tmp_path, ros_en
     assert over_ros["heading_error_mean_rad"] == pytest.approx(in_process.heading_error_mean_rad, rel=0.2)
     assert over_ros["lap_time_s"] == pytest.approx(in_process.lap_time_s, rel=0.02)
     assert summary["commands_received"] == over_ros["steps"]  # one answer per odometry, none lost
-    rows = node_rows(tmp_path / "node")
+    rows = node_rows(lap / "node")
     answers = [r for r in rows if r["state"] == "running"]
     assert len(answers) == over_ros["steps"]
     # The wheel angle the car measured reached the controller with its own odometry.
     assert all(math.isfinite(float(r["obs_steer_angle"])) for r in answers)
     assert rows[-1]["state"] == "shutdown" and float(rows[-1]["speed"]) == 0.0
+
+
+def test_the_recorded_bag_is_the_lap_the_simulated_car_drove(lap):
+    """Imported, the node's bag gives the simulated car's own log: poses, wheel angles, commands."""
+    import yaml
+
+    from rkmpc.core.angles import wrap_angle
+    from rkmpc.core.observation import OBSERVATION_FIELDS
+    from rkmpc.learning.data.bags import BagImportConfig, import_bag
+    from rkmpc.sim.log import StepLog
+    from rkmpc.vehicle.params import f1tenth
+
+    bag = lap / "bag"
+    assert sorted(p.name for p in lap.iterdir() if p.name.startswith(".")) == []  # no draft left
+    data = import_bag(bag, f1tenth(), BagImportConfig(steer_topic=STEERING))
+    log = StepLog.from_csv(lap / "sim" / "log.csv")
+    n = len(log)
+    assert len(data) == n - 1 and set(data.episode.tolist()) == {0}  # every step, one episode
+    # The log has 9 significant digits; odometry and wheel angle are float64 on the wire.
+    for name in ("x", "y", "yaw", "speed", "yaw_rate", "steer_angle"):
+        column = OBSERVATION_FIELDS.index(name)
+        logged = wrap_angle(log[name]) if name == "yaw" else log[name]  # the log's yaw is unwrapped
+        for got, want in ((data.obs, logged[: n - 1]), (data.next_obs, logged[1:])):
+            np.testing.assert_allclose(got[:, column], want, rtol=1e-8, atol=1e-8, err_msg=name)
+    # The commands are float32 on the wire.
+    np.testing.assert_allclose(data.command[:, 0], log["cmd_speed"][: n - 1], rtol=2.0**-23)
+    np.testing.assert_allclose(data.command[:, 1], log["cmd_steer"][: n - 1], rtol=2.0**-23, atol=1e-12)
+    # The bag is what ros2 bag would make: the types' names and the RIHS01 hashes ROS 2 announces.
+    info = yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    assert info["storage_identifier"] == "mcap"
+    topics = {t["topic_metadata"]["name"]: t["topic_metadata"] for t in info["topics_with_message_count"]}
+    share = Path(sys.prefix) / "share"
+    for topic, kind in [
+        ("/ego_racecar/odom", "nav_msgs/msg/Odometry"),
+        ("/drive", "ackermann_msgs/msg/AckermannDriveStamped"),
+        (STEERING, "std_msgs/msg/Float64"),
+    ]:
+        package, _, name = kind.split("/")
+        described = json.loads((share / package / "msg" / f"{name}.json").read_text())
+        hashes = {h["type_name"]: h["hash_string"] for h in described["type_hashes"]}
+        assert topics[topic]["type"] == kind and topics[topic]["type_description_hash"] == hashes[kind]
 
 
 def test_the_node_stops_the_car_when_its_odometry_dies(tmp_path, ros_env, monkeypatch):
@@ -145,7 +198,9 @@ def test_the_node_stops_the_car_when_its_odometry_dies(tmp_path, ros_env, monkey
             executor.spin_once(timeout_sec=0.05)
 
     node_log, sim_log = tmp_path / "node.log", tmp_path / "sim.log"
-    node = start(["node", "--config", str(car), "--out", str(tmp_path / "node")], ros_env, node_log)
+    bag = tmp_path / "bag"
+    node_args = ["node", "--config", str(car), "--out", str(tmp_path / "node")]
+    node = start([*node_args, "--record", str(bag), "--record-storage", "sqlite3"], ros_env, node_log)
     sim = start(["sim-node", "--laps", "1"], ros_env, sim_log)
     try:
         spin_until(lambda: sum(speed > 0 for speed, _ in heard) >= 20, "driving commands")  # a second driving
@@ -179,3 +234,27 @@ def test_the_node_stops_the_car_when_its_odometry_dies(tmp_path, ros_env, monkey
     # What went over the wire: the stop, with the held wheel angle (float32 on the wire).
     stops = [(speed, steer) for speed, steer in heard[killed_at:] if speed == 0.0]
     assert stops[0][1] == pytest.approx(float(before["steer"]), abs=1e-6)
+    # The node was stopped (SIGINT) mid-lap, recording in real time: its bag is complete, under its
+    # own name, with every command it sent (the final stop last) and the odometry it drove on.
+    from rkmpc.learning.data.bags import BagImportConfig, import_bag
+    from rkmpc.learning.data.bags.read import read_streams
+    from rkmpc.vehicle.params import f1tenth
+
+    assert (bag / "metadata.yaml").is_file() and [p.suffix for p in bag.glob("*.db3")] == [".db3"]
+    assert [p for p in tmp_path.iterdir() if p.name.startswith(".bag")] == []
+    streams = read_streams(bag, BagImportConfig())
+    assert len(streams.drive) == len(rows) and streams.drive.values[-1][0] == 0.0
+    np.testing.assert_allclose(streams.drive.values[:, 0], [float(r["speed"]) for r in rows], rtol=2.0**-23)
+    assert len(streams.odom) >= sum(r["fresh"] == "1" for r in rows)
+    data = import_bag(bag, f1tenth(), BagImportConfig(min_samples=10))
+    assert len(data) >= 10 and np.all(np.isfinite(data.obs[:, :5]))
+
+
+def test_a_bag_name_may_carry_the_start_time():
+    import datetime
+
+    from rkmpc.ros.bag_record import bag_path
+
+    moment = datetime.datetime(2025, 1, 31, 14, 25, 1)
+    assert bag_path("runs/laps-{time}", moment) == Path("runs/laps-20250131-142501")
+    assert bag_path("runs/laps", moment) == Path("runs/laps")

@@ -1,4 +1,4 @@
-"""Command line: ``rkmpc run | compare | collect | train | tracks | study ... | node | sim-node``.
+"""Command line: ``rkmpc run | compare | collect | train | tracks | study ... | node | sim-node | car-loop``.
 
 This module only parses arguments and dispatches to the library; what each
 command computes and writes lives in :mod:`rkmpc.experiments`, :mod:`rkmpc.sim`

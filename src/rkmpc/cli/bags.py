@@ -12,7 +12,7 @@ def add_bag_args(parser: argparse.ArgumentParser) -> None:
     """The ``--from-bag`` option of ``rkmpc collect`` and the options of the import."""
     from rkmpc.learning.data.bags.config import DEFAULT_DRIVE_TOPIC, DEFAULT_ODOM_TOPIC, ODOM_FRAMES
 
-    group = parser.add_argument_group("importing a bag (--from-bag; see docs/bags.md)")
+    group = parser.add_argument_group("importing a bag (--from-bag; see docs/car.md)")
     group.add_argument(
         "--from-bag",
         default=None,

@@ -1,8 +1,10 @@
-"""``rkmpc node`` and ``rkmpc sim-node``, the ROS 2 commands (they need the ``ros`` extra: ``make ros``)."""
+"""``rkmpc node``, ``sim-node`` and ``car-loop``, the ROS 2 commands (the ``ros`` extra: ``make ros``)."""
 
 from __future__ import annotations
 
 import argparse
+import signal
+import sys
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -10,7 +12,7 @@ from typing import Any
 from rkmpc.cli.common import VEHICLES
 from rkmpc.core.errors import RkmpcError
 
-__all__ = ["ROS_COMMANDS", "add_ros_parsers"]
+__all__ = ["ROS_COMMANDS", "add_car_loop_parser", "add_ros_parsers"]
 
 _ROS_ARGS_HELP = "everything after it goes to ROS (e.g. -p safety.odometry_timeout:=1.0, -r /drive:=/cmd)"
 
@@ -21,6 +23,16 @@ def add_ros_parsers(sub: Any) -> None:
     node.add_argument("--config", required=True, type=Path, help="the car's YAML file (docs/car.md)")
     node.add_argument(
         "--out", type=Path, default=None, help="folder for what the node decided, written at exit"
+    )
+    node.add_argument(
+        "--record",
+        type=Path,
+        default=None,
+        metavar="BAG",
+        help="record the odometry, wheel angles and commands to this new ROS 2 bag folder (record.bag)",
+    )
+    node.add_argument(
+        "--record-storage", default=None, choices=["mcap", "sqlite3"], help="the bag's storage (mcap)"
     )
     node.add_argument(
         "--ros-args", dest="ros_args", nargs=argparse.REMAINDER, default=None, help=_ROS_ARGS_HELP
@@ -62,6 +74,36 @@ def add_ros_parsers(sub: Any) -> None:
     sim.add_argument(
         "--ros-args", dest="ros_args", nargs=argparse.REMAINDER, default=None, help=_ROS_ARGS_HELP
     )
+    add_car_loop_parser(sub)
+
+
+def add_car_loop_parser(sub: Any) -> None:
+    """Add ``car-loop``: the paper's on-car workflow on loopback (:mod:`rkmpc.ros.workflow`)."""
+    loop = sub.add_parser(
+        "car-loop",
+        help="record LMPC laps over ROS 2, train from the bag, drive LMPC, lmpc-id, RKMPC: Table II",
+    )
+    loop.add_argument("--out", required=True, type=Path, help="output folder (see docs/car.md)")
+    loop.add_argument(
+        "--clock",
+        default="lockstep",
+        choices=["lockstep", "realtime"],
+        help="lock-step (results independent of the machine's load) or the wall clock",
+    )
+    loop.add_argument("--track", default="builtin", help="built-in track name or TUM centre-line CSV")
+    loop.add_argument(
+        "--delay-study",
+        type=float,
+        default=0.05,
+        metavar="SECONDS",
+        help="added actuation delay of the latency-compensation runs (LMPC, RKMPC); 0 skips them",
+    )
+    loop.add_argument("--seed", type=int, default=0, help="seed of the simulated car and the training")
+    loop.add_argument("--domain-id", type=int, default=None, help="ROS_DOMAIN_ID (default: from the pid)")
+    loop.add_argument(
+        "--timeout", type=float, default=3600.0, help="bound of each process (s), against hangs"
+    )
+    loop.add_argument("--force", action="store_true", help="replace an earlier car-loop output folder")
 
 
 def _ros_args(args: argparse.Namespace) -> list[str]:
@@ -80,7 +122,13 @@ def cmd_node(args: argparse.Namespace) -> int:
         from rkmpc.ros.node import run_node
     except ImportError as exc:
         raise _missing_ros(exc) from None
-    return run_node(args.config, out=args.out, ros_args=_ros_args(args))
+    return run_node(
+        args.config,
+        out=args.out,
+        record=args.record,
+        record_storage=args.record_storage,
+        ros_args=_ros_args(args),
+    )
 
 
 def cmd_sim_node(args: argparse.Namespace) -> int:
@@ -114,5 +162,50 @@ def cmd_sim_node(args: argparse.Namespace) -> int:
     return run_sim_node(config, out=args.out, ros_args=_ros_args(args))
 
 
+def _interrupt(signum: int, frame: Any) -> None:
+    raise KeyboardInterrupt
+
+
+def cmd_car_loop(args: argparse.Namespace) -> int:
+    import importlib.util
+
+    from rkmpc.ros.workflow import WorkflowConfig, run_workflow
+    from rkmpc.ros.workflow_report import markdown_report
+
+    for module, install in (
+        ("rclpy", "make ros"),
+        ("ackermann_msgs", "make ros"),
+        ("rosbags", "make ros"),
+        ("torch", "the train extra: make"),
+    ):
+        if importlib.util.find_spec(module) is None:
+            raise RkmpcError(f"rkmpc car-loop needs {module}: install it with {install}")
+    config = WorkflowConfig(
+        out=str(args.out),
+        clock=args.clock,
+        track=args.track,
+        delay=args.delay_study,
+        seed=args.seed,
+        domain_id=args.domain_id,
+        force=args.force,
+        timeout=args.timeout,
+    )
+    previous = signal.signal(signal.SIGTERM, _interrupt)  # SIGTERM stops the processes as Ctrl-C does
+    try:
+        report = run_workflow(config, say=lambda message: print(message, flush=True))
+    except KeyboardInterrupt:
+        print("rkmpc: interrupted; every process of the run was stopped", file=sys.stderr)
+        return 130
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+    print(markdown_report(report))
+    print(f"-> {args.out / 'table2.md'}, {args.out / 'table2.json'}")
+    return 0
+
+
 #: The ROS subcommands by name.
-ROS_COMMANDS: dict[str, Callable[[argparse.Namespace], int]] = {"node": cmd_node, "sim-node": cmd_sim_node}
+ROS_COMMANDS: dict[str, Callable[[argparse.Namespace], int]] = {
+    "node": cmd_node,
+    "sim-node": cmd_sim_node,
+    "car-loop": cmd_car_loop,
+}

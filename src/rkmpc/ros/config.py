@@ -1,10 +1,10 @@
 """The settings of ``rkmpc node``: one YAML file per car, overridable by ROS parameters.
 
 The file is a mapping whose keys are the fields of :class:`NodeConfig`; the sections
-(``topics``, ``frames``, ``odometry``, ``latency``, ``safety``, ``speed_limits``) are nested
+(``topics``, ``frames``, ``odometry``, ``latency``, ``safety``, ``speed_limits``, ``record``) are nested
 mappings. Every key is optional (the defaults are the F1TENTH simulator's conventions and the
 paper's 20 Hz) and unknown keys are refused. A ROS parameter overrides a key by its dotted name
-(``--ros-args -p safety.odometry_timeout:=1.0``). Relative paths (track, race line, model) are
+(``--ros-args -p safety.odometry_timeout:=1.0``). Relative paths (track, race line, model, bag) are
 relative to the file. Errors name the file and the key.
 
 Example (``docs/car.md`` has the full list)::
@@ -31,6 +31,7 @@ from pathlib import Path
 from typing import Any
 
 from rkmpc.core.errors import InputFileError, ParameterError
+from rkmpc.learning.data.bags.stream import RECORD_STORAGES
 from rkmpc.track.speed_profile import SpeedLimits
 
 __all__ = [
@@ -38,6 +39,7 @@ __all__ = [
     "LatencySettings",
     "NodeConfig",
     "OdometrySettings",
+    "RecordSettings",
     "SafetySettings",
     "SpeedLimitOverrides",
     "Topics",
@@ -180,6 +182,26 @@ class SafetySettings:
 
 
 @dataclass(frozen=True)
+class RecordSettings:
+    """Recording what the node saw and sent to a bag (``rkmpc node --record``).
+
+    Parameters
+    ----------
+    bag : str or None
+        The ROS 2 bag folder to write; it must not exist. ``{time}`` in it becomes the node's
+        start time (``20250131-142501``). None records nothing.
+    storage : str
+        ``"mcap"`` (the ROS 2 default) or ``"sqlite3"``.
+    """
+
+    bag: str | None = None
+    storage: str = "mcap"
+
+    def __post_init__(self) -> None:
+        _choice(self, "storage", RECORD_STORAGES)
+
+
+@dataclass(frozen=True)
 class SpeedLimitOverrides:
     """Fields of the speed profile's :class:`~rkmpc.track.speed_profile.SpeedLimits` to change.
 
@@ -246,6 +268,7 @@ class NodeConfig:
     odometry: OdometrySettings = field(default_factory=OdometrySettings)
     latency: LatencySettings = field(default_factory=LatencySettings)
     safety: SafetySettings = field(default_factory=SafetySettings)
+    record: RecordSettings = field(default_factory=RecordSettings)
 
     def __post_init__(self) -> None:
         _positive(self, "rate_hz", "scale")
@@ -303,6 +326,9 @@ def load_node_config(path: str | Path, overrides: Mapping[str, Any] | None = Non
         track=_resolve(config.track, base, builtin_ok=True),
         raceline=None if config.raceline is None else _resolve(config.raceline, base),
         model=None if config.model is None else _resolve(config.model, base),
+        record=replace(
+            config.record, bag=None if config.record.bag is None else _resolve(config.record.bag, base)
+        ),
     )
 
 

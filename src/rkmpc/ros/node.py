@@ -9,8 +9,13 @@ whose keys ROS parameters override. What happens each period, and when the car i
 :class:`rkmpc.ros.driver.CarDriver`'s; this module only moves messages.
 
 Ctrl-C (or SIGTERM) ends the node with a final stop command. :meth:`ControllerNode.add_recorder`
-hands every message in and out to a recorder (a bag writer), and ``--out`` writes what the node
+hands every message in and out to a recorder; ``--record`` (``record.bag``) writes them to a bag
+(:mod:`rkmpc.ros.bag_record`), closed after the final stop, and ``--out`` writes what the node
 decided (:mod:`rkmpc.ros.record`) when it ends.
+
+In lock-step (``trigger: odometry``) the node's clock is the car's: the commands that answer no
+odometry (a watchdog stop, the final stop) and the diagnostics are stamped with the last
+odometry's stamp advanced by the wall time since it arrived.
 """
 
 from __future__ import annotations
@@ -18,13 +23,14 @@ from __future__ import annotations
 import math
 import signal
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import fields, is_dataclass, replace
 from pathlib import Path
 from typing import Any
 
 import rclpy
 from ackermann_msgs.msg import AckermannDriveStamped
+from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from nav_msgs.msg import Odometry
 from rclpy.clock import Clock, ClockType
@@ -41,8 +47,9 @@ from rkmpc.learning.contract import contract_of
 from rkmpc.learning.io import load_model
 from rkmpc.learning.koopman.model import KoopmanModel
 from rkmpc.learning.recipes import recipe_for
+from rkmpc.ros.bag_record import BagRecorder, bag_path
 from rkmpc.ros.config import NodeConfig, flatten, load_node_config
-from rkmpc.ros.conversions import fill_drive, observation_from_odometry, seconds_of
+from rkmpc.ros.conversions import fill_drive, observation_from_odometry, seconds_of, set_stamp
 from rkmpc.ros.driver import CarDriver, Decision
 from rkmpc.ros.record import write_record
 from rkmpc.sim.scenario import load_scenario, vehicle_preset
@@ -122,16 +129,21 @@ class ControllerNode(Node):
         The car's YAML file; ROS parameter overrides of its keys are applied.
     context : rclpy.context.Context, optional
         The ROS context (the default one when None).
+    overrides : mapping of str to object, optional
+        Keys (dotted names) set after the ROS parameters (the command line's ``--record``).
     """
 
-    def __init__(self, config_path: Path, *, context: Any = None) -> None:
+    def __init__(
+        self, config_path: Path, *, context: Any = None, overrides: Mapping[str, Any] | None = None
+    ) -> None:
         super().__init__("rkmpc_node", context=context, automatically_declare_parameters_from_overrides=True)
-        overrides = {
+        settings = {
             name: param.value
             for name, param in self.get_parameters_by_prefix("").items()
             if name not in _ROS_OWN_PARAMETERS and not name.startswith("qos_overrides.")
         }
-        self.config = config = load_node_config(config_path, overrides)
+        settings.update(overrides or {})
+        self.config = config = load_node_config(config_path, settings)
         for name, value in flatten(config).items():
             if value is not None and not self.has_parameter(name):
                 self.declare_parameter(name, value)
@@ -142,6 +154,7 @@ class ControllerNode(Node):
         self._answered: tuple[int, int] | None = None
         self._pending_stamp: Any = None
         self._answer_msg: AckermannDriveStamped | None = None
+        self._car_clock: tuple[float, float] | None = None  # lock-step: (last stamp, its arrival), s
         self._last_decision: Decision | None = None
         self._state = ""
         self._frame_warned = False
@@ -173,7 +186,7 @@ class ControllerNode(Node):
         """Send the final stop command and wait (1 s at most) until it is delivered."""
         wall = time.monotonic()
         decision = self.driver.shutdown(wall, wall)
-        self._publish(decision, self.get_clock().now().to_msg())
+        self._publish(decision, self._now())
         self._drive.wait_for_all_acked(Duration(seconds=1.0))
         return decision
 
@@ -185,6 +198,10 @@ class ControllerNode(Node):
         self._answer()
 
     def _on_odometry(self, msg: Odometry) -> None:
+        key = (msg.header.stamp.sec, msg.header.stamp.nanosec)
+        if self._lockstep and key == self._answered and self._answer_msg is not None:
+            self._drive.publish(self._answer_msg)  # the car asked again: it missed the answer
+            return
         self._record(self.config.topics.odometry, msg)
         wanted = self.config.frames.map
         if wanted is not None and msg.header.frame_id != wanted:
@@ -199,10 +216,7 @@ class ControllerNode(Node):
         if not self._lockstep:
             self.driver.on_odometry(observation, wall, wall)
             return
-        key = (msg.header.stamp.sec, msg.header.stamp.nanosec)
-        if key == self._answered and self._answer_msg is not None:
-            self._drive.publish(self._answer_msg)  # the car asked again: it missed the answer
-            return
+        self._car_clock = (seconds_of(msg.header.stamp), wall)
         self._pending_stamp = msg.header.stamp
         self.driver.on_odometry(observation, seconds_of(msg.header.stamp), wall)
         self._answer()
@@ -217,9 +231,18 @@ class ControllerNode(Node):
         self._answered = (stamp.sec, stamp.nanosec)
         self._pending_stamp = None
 
+    def _now(self) -> Any:
+        """The stamp of a message sent now: ROS time, or in lock-step the car's clock (the module)."""
+        if self._car_clock is None:
+            return self.get_clock().now().to_msg()
+        stamp, arrived = self._car_clock
+        now = Time()
+        set_stamp(now, stamp + (time.monotonic() - arrived))
+        return now
+
     def _on_timer(self) -> None:
         wall = time.monotonic()
-        now = self.get_clock().now().to_msg()
+        now = self._now()
         if self._lockstep:
             decision = self.driver.watchdog(wall, wall)
             if decision is not None:
@@ -296,8 +319,25 @@ def _text(value: Any) -> str:
     return str(value)
 
 
-def run_node(config_path: Path, *, out: Path | None = None, ros_args: list[str] | None = None) -> int:
-    """Run the node until Ctrl-C or SIGTERM; then a final stop command, and ``--out`` files. Returns 0."""
+def run_node(
+    config_path: Path,
+    *,
+    out: Path | None = None,
+    record: Path | None = None,
+    record_storage: str | None = None,
+    ros_args: list[str] | None = None,
+) -> int:
+    """Run the node until Ctrl-C or SIGTERM; then a final stop command, the bag and ``--out`` files.
+
+    ``record`` and ``record_storage`` set ``record.bag`` and ``record.storage`` of the car's file.
+    The bag is created before the node drives (an existing one is an error) and closed after the
+    final stop, on Ctrl-C and SIGTERM alike. Returns 0.
+    """
+    overrides: dict[str, Any] = {}
+    if record is not None:
+        overrides["record.bag"] = str(record.expanduser().resolve())
+    if record_storage is not None:
+        overrides["record.storage"] = record_storage
     stop = {"flag": False}
 
     def on_signal(signum: int, frame: Any) -> None:
@@ -306,14 +346,21 @@ def run_node(config_path: Path, *, out: Path | None = None, ros_args: list[str] 
     rclpy.init(args=ros_args, signal_handler_options=SignalHandlerOptions.NO)
     previous = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
     node: ControllerNode | None = None
+    recorder: BagRecorder | None = None
     try:
-        node = ControllerNode(config_path)
+        node = ControllerNode(config_path, overrides=overrides)
+        if node.config.record.bag is not None:
+            recorder = BagRecorder(bag_path(node.config.record.bag), node.config)
+            node.add_recorder(recorder)
+            node.get_logger().info(f"recording to {recorder.path} ({node.config.record.storage})")
         executor = SingleThreadedExecutor()
         executor.add_node(node)
         while not stop["flag"]:
             executor.spin_once(timeout_sec=0.1)
         node.close()
         node.get_logger().info("stopped: final stop command sent")
+        if recorder is not None:
+            node.get_logger().info(f"bag written: {recorder.close()} {recorder.counts}")
         if out is not None:
             driver = node.driver
             write_record(
@@ -329,6 +376,8 @@ def run_node(config_path: Path, *, out: Path | None = None, ros_args: list[str] 
             )
         return 0
     finally:
+        if recorder is not None:
+            recorder.close()  # what was recorded is kept, also when the node failed
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()

@@ -2,9 +2,9 @@
 
 ``node_log.csv`` has one row per :class:`~rkmpc.ros.driver.Decision` (the command, its state,
 the odometry it was made from, its errors and the controller's step time); ``node_summary.json``
-counts the commands by state and gives the odometry-to-command latency (the age of an odometry
-when the first command made from it was sent: median, 99th percentile, largest) and the step
-times.
+counts the commands by state and gives the odometry-to-command latency (from an odometry's
+arrival to the first command made from it: its age when the decision began plus the controller's
+step; median, 99th percentile, largest) and the step times.
 """
 
 from __future__ import annotations
@@ -87,7 +87,9 @@ def summarise(decisions: Iterable[Decision], extra: Mapping[str, Any] | None = N
     return {
         "commands": len(rows),
         "by_state": counts,
-        "odometry_to_command_ms": _stats_ms(d.odometry_age_s for d in fresh),
+        "odometry_to_command_ms": _stats_ms(
+            d.odometry_age_s + (d.solve_time_s if math.isfinite(d.solve_time_s) else 0.0) for d in fresh
+        ),
         "solve_time_ms": _stats_ms(d.solve_time_s for d in running),
         **(extra or {}),
     }

@@ -5,7 +5,8 @@
 (``nav_msgs/msg/Odometry``), commands (``ackermann_msgs/msg/AckermannDriveStamped``) and an
 optional wheel-angle topic, resampled onto the control period
 (:mod:`~rkmpc.learning.data.bags.resample`). :func:`write_bag` and :func:`write_log_bag` record a
-run the same way a car's stack would. Importing this package does not import ``rosbags``; reading
+run the same way a car's stack would; :class:`BagStreamWriter` writes messages as they come (the
+recorder of ``rkmpc node --record``). Importing this package does not import ``rosbags``; reading
 or writing a bag does.
 """
 
@@ -20,14 +21,17 @@ from rkmpc.learning.data.bags.config import (
     BagWriteConfig,
 )
 from rkmpc.learning.data.bags.importer import import_bag
+from rkmpc.learning.data.bags.stream import RECORD_STORAGES, BagStreamWriter
 from rkmpc.learning.data.bags.write import write_bag, write_log_bag
 
 __all__ = [
     "DEFAULT_DRIVE_TOPIC",
     "DEFAULT_ODOM_TOPIC",
     "ODOM_FRAMES",
+    "RECORD_STORAGES",
     "STORAGES",
     "BagImportConfig",
+    "BagStreamWriter",
     "BagWriteConfig",
     "import_bag",
     "write_bag",
