@@ -14,8 +14,9 @@ The time each message is filed under (the bag's receive time) is the node's cloc
 * ``trigger: odometry`` (lock-step with ``rkmpc sim-node``): the simulated car's clock, as
   ``ros2 bag record --use-sim-time`` would file it: odometry and commands under their header
   stamps (an answer carries its odometry's stamp), and a wheel angle, which has no header, under
-  the stamp of the odometry that follows it (the simulated car sends the two together, the angle
-  first). Only the last angle before an odometry is kept.
+  the stamp of the odometry its answer carries: the node answers an odometry only once the angle
+  sent with it is in, whichever of the two arrived first (two topics keep no order between them),
+  and the car sends nothing new before the answer. Only the last angle before an answer is kept.
 """
 
 from __future__ import annotations
@@ -66,7 +67,9 @@ class BagRecorder:
         self.writer = BagStreamWriter(path, kinds, config.record.storage)
         self.path = self.writer.path
         self._odometry = topics.odometry
+        self._drive = topics.drive
         self._steering = topics.steering
+        self._last_odometry: int | None = None
         self._sim_clock = config.trigger == "odometry"
         self._steer_waiting: bytes | None = None
 
@@ -85,7 +88,15 @@ class BagRecorder:
             self._steer_waiting = data
             return
         stamp = int(msg.header.stamp.sec) * _NS + int(msg.header.stamp.nanosec)
-        if topic == self._odometry and self._steer_waiting is not None and self._steering is not None:
+        if topic == self._odometry:
+            self._last_odometry = stamp
+        elif (
+            topic == self._drive
+            and self._steering is not None
+            and self._steer_waiting is not None
+            and stamp == self._last_odometry
+        ):
+            # The answer to the newest odometry: the angle the node answered it with goes with it.
             self.writer.write(self._steering, stamp, self._steer_waiting)
             self._steer_waiting = None
         self.writer.write(topic, stamp, data)
