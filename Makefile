@@ -38,7 +38,7 @@ car-loop: $(VENV)/.installed $(VENV)/.installed-ros
 # The paper's Table I on the built-in track: two LMPC laps of data, the residual models and
 # lmpc-id learned from them, the KMPC model (trained once, then cached), then every controller.
 demo: $(VENV)/.installed
-	$(BIN)/rkmpc compare --track builtin --out runs/demo
+	$(BIN)/rkmpc compare --track builtin --out runs/demo --force
 
 # The fast tier (under 4 minutes on two quiet cores); `make test-slow` runs the long end-to-end tests.
 test: $(VENV)/.installed-test $(VENV)/.installed-ros
@@ -67,21 +67,21 @@ learning-table: $(VENV)/.installed
 
 # Every controller on the built-in and every shared track (runs in parallel on the local cores).
 study-tracks: $(VENV)/.installed
-	$(BIN)/rkmpc study tracks --tracks builtin,../shared/tracks/centerlines --out runs/study-tracks
+	$(BIN)/rkmpc study tracks --tracks builtin,../shared/tracks/centerlines --out runs/study-tracks --force
 
 # Every controller on six cars of the zoo (issue 11) over every shared track; long (hours on 2 cores).
 study-cars: $(VENV)/.installed
 	$(BIN)/rkmpc study cars --cars gym,overshoot,cheap-servo,low-grip,heavy-long,light-short \
-		--tracks builtin,../shared/tracks/centerlines --controllers pp,lmpc,lmpc-id,rkmpc --out runs/study-cars
+		--tracks builtin,../shared/tracks/centerlines --controllers pp,lmpc,lmpc-id,rkmpc --out runs/study-cars --force
 
 # RKMPC against KMPC as the training data grow, three seeds.
 study-data: $(VENV)/.installed
-	$(BIN)/rkmpc study data --track builtin --out runs/study-data
+	$(BIN)/rkmpc study data --track builtin --out runs/study-data --force
 
 # What each fault does to every controller on the built-in track (models come from the cache).
 FAULTS := noise delay friction heavy
 faults: $(VENV)/.installed
-	for f in $(FAULTS); do $(BIN)/rkmpc compare --track builtin --fault $$f --out runs/faults/$$f || exit 1; done
+	for f in $(FAULTS); do $(BIN)/rkmpc compare --track builtin --fault $$f --out runs/faults/$$f --force || exit 1; done
 
 # docs/results.md from a full run: demo, faults, both studies and the step-time benchmark.
 results: demo faults study-tracks study-data bench

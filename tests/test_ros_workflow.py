@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from rkmpc.core.errors import ParameterError
+from rkmpc.core.errors import OutputError, ParameterError
 from rkmpc.ros.workflow import MARKER, WorkflowConfig, WorkflowError, prepare_folder
 from rkmpc.ros.workflow_report import TABLE_KEYS, build_report, markdown_report
 
@@ -27,10 +27,10 @@ def test_an_output_folder_is_not_reused_without_force(tmp_path):
     prepare_folder(out, force=False)  # a new folder
     prepare_folder(out, force=False)  # an empty one
     (out / "notes.txt").write_text("mine")
-    with pytest.raises(WorkflowError, match="pass --force"):
+    with pytest.raises(OutputError, match="pass --force"):
         prepare_folder(out, force=False)
     # --force replaces only the output of an earlier car-loop.
-    with pytest.raises(WorkflowError, match="not the output of rkmpc car-loop"):
+    with pytest.raises(OutputError, match=f"not an rkmpc output \\(no {MARKER}\\)"):
         prepare_folder(out, force=True)
     assert (out / "notes.txt").read_text() == "mine"
     (out / MARKER).write_text("{}")

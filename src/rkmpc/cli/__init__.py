@@ -8,17 +8,19 @@ and :mod:`rkmpc.learning`.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
 import warnings
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any
 
 from rkmpc.cli.bags import add_bag_args, cmd_collect_from_bag
-from rkmpc.cli.common import CACHE_HELP, VEHICLES, split_controllers
+from rkmpc.cli.common import CACHE_HELP, VEHICLES, add_force_arg
+from rkmpc.cli.compare import cmd_compare
 from rkmpc.cli.ros import ROS_COMMANDS, add_ros_parsers
 from rkmpc.cli.study import add_study_parser, cmd_study
 from rkmpc.core.errors import IdentificationWarning, RkmpcError
+from rkmpc.core.interrupt import interruptible
 
 
 def _add_scenario_args(parser: argparse.ArgumentParser) -> None:
@@ -62,6 +64,7 @@ def _add_learning_args(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-cache", action="store_true", help="train every model afresh, store nothing")
     parser.add_argument("--epochs", type=int, default=None, help="training epochs of the learned models")
     _add_mismatch_arg(parser, "drive with --model files made with another car, period or track scale")
+    add_force_arg(parser)
 
 
 def _add_mismatch_arg(parser: argparse.ArgumentParser, what: str) -> None:
@@ -133,39 +136,26 @@ def main(argv: Sequence[str] | None = None) -> int:
         "collect": _cmd_collect,
         "train": _cmd_train,
         "study": cmd_study,
-        "run": _cmd_compare,
-        "compare": _cmd_compare,
+        "run": cmd_compare,
+        "compare": cmd_compare,
         **ROS_COMMANDS,
     }
     try:
         # Identification warnings are part of each command's own report (train's lines, the
         # comparison's messages and results.json), not Python warnings on stderr besides.
-        with warnings.catch_warnings():
+        # The ROS commands handle SIGINT themselves (rclpy, the car-loop's processes).
+        catch = contextlib.nullcontext() if args.command in ROS_COMMANDS else interruptible()
+        with warnings.catch_warnings(), catch:
             warnings.simplefilter("ignore", IdentificationWarning)
             return commands[args.command](args)
     except (RkmpcError, ValueError, OSError) as exc:
         print(f"rkmpc: error: {exc}", file=sys.stderr)
         return 2
-
-
-def _model_files(names: list[str], specs: list[str]) -> dict[str, str]:
-    """Model files by controller, from ``--model [NAME=]PATH`` arguments."""
-    from rkmpc.learning.recipes import recipe_for
-
-    learned = [n for n in names if recipe_for(n) is not None]
-    paths: dict[str, str] = {}
-    for spec in specs:
-        name, sep, path = spec.partition("=")
-        if not sep:
-            if len(learned) != 1:
-                raise ValueError("--model PATH needs exactly one learned controller; use NAME=PATH")
-            name, path = learned[0], spec
-        if name not in names:
-            raise ValueError(f"--model {name}=...: {name!r} is not among the controllers {names}")
-        if name not in learned:
-            raise ValueError(f"--model {name}=...: {name!r} takes no model; learned: {learned}")
-        paths[name] = path
-    return paths
+    except KeyboardInterrupt:
+        # Every output is written whole or not at all, and a run's folder only appears when it is
+        # complete (rkmpc.core.io): nothing to clean up, nothing to say but this.
+        print("rkmpc: interrupted", file=sys.stderr)
+        return 130
 
 
 def _cmd_tracks(_: argparse.Namespace) -> int:
@@ -178,12 +168,14 @@ def _cmd_tracks(_: argparse.Namespace) -> int:
 
 
 def _cmd_collect(args: argparse.Namespace) -> int:
+    from rkmpc.core.io import check_output_file
     from rkmpc.learning.data.dataset import TransitionDataset
     from rkmpc.sim.collect import collect, collect_excitation
     from rkmpc.sim.faults import DEFAULT_NOISE
     from rkmpc.sim.log import StepLog
     from rkmpc.sim.scenario import load_scenario
 
+    check_output_file(args.out)
     if args.from_bag is not None:
         return cmd_collect_from_bag(args)
     if args.from_log is not None:
@@ -207,11 +199,13 @@ def _cmd_train(args: argparse.Namespace) -> int:
     from rich.console import Console
     from rich.progress import Progress
 
+    from rkmpc.core.io import check_output_file
     from rkmpc.experiments.training import train_to_file
     from rkmpc.learning.contract import Provenance
     from rkmpc.learning.data.dataset import TransitionDataset
     from rkmpc.sim.scenario import vehicle_preset
 
+    check_output_file(args.out)
     data = TransitionDataset.load(args.data)
     vehicle = vehicle_preset(args.vehicle).params()
     made_for = Provenance(vehicle=args.vehicle, dt=args.dt, wheelbase=vehicle.wheelbase)
@@ -235,58 +229,4 @@ def _cmd_train(args: argparse.Namespace) -> int:
             source=str(args.data),
         )
     print("\n".join(lines))
-    return 0
-
-
-def _cmd_compare(args: argparse.Namespace) -> int:
-    from rich.console import Console
-
-    from rkmpc.analysis.tables import fault_table, rich_table
-    from rkmpc.experiments.compare import CompareConfig, compare
-    from rkmpc.experiments.report import title_of, write_comparison, write_single_run
-
-    single = args.command == "run"
-    names = [args.controller] if single else split_controllers(args.controllers)
-    config = CompareConfig(
-        track=args.track,
-        raceline=args.raceline,
-        scale=args.scale,
-        vehicle=args.vehicle,
-        controllers=tuple(names),
-        laps=args.data_laps,
-        run_laps=args.laps,
-        seed=args.seed,
-        noise=args.noise,
-        fault=args.fault,
-        kmpc_samples=args.kmpc_samples,
-        cache_dir=None if args.cache_dir is None else str(args.cache_dir),
-        use_cache=not args.no_cache,
-        model_files=tuple(_model_files(names, args.model).items()),
-        epochs=args.epochs,
-        car=args.car,
-        allow_mismatch=args.allow_mismatch,
-    )
-    out: Path = args.out
-    out.mkdir(parents=True, exist_ok=True)
-    console = Console(stderr=True)
-    logs: dict[str, Any] = {}
-
-    def on_run(label: str, result: Any) -> None:
-        result.log.to_csv(out / ("log.csv" if single and "+" not in label else f"log_{label}.csv"))
-        console.print(f"  {label}: {result.outcome}, {len(result.log)} steps")
-
-    with console.status("starting", spinner="dots") as status:
-
-        def say(message: str) -> None:
-            status.update(message)
-            console.print(message)
-
-        result = compare(config, logs=logs, on_run=on_run, say=say)
-    track = config.scenario().track
-    (write_single_run if single else write_comparison)(out, result, logs, track)
-    wide = Console(width=None if Console().is_terminal else 260)
-    wide.print(rich_table(result.metrics(), title_of(result)))
-    if result.fault is not None:
-        faulted = {name: run.metrics for name, run in result.fault.runs.items()}
-        wide.print(fault_table(result.metrics(), faulted, result.fault.effects, result.fault.fault))
     return 0

@@ -6,10 +6,18 @@ import argparse
 import os
 from pathlib import Path
 
-__all__ = ["CACHE_HELP", "VEHICLES", "add_parallel_args", "ints", "split_controllers"]
+__all__ = ["CACHE_HELP", "VEHICLES", "add_force_arg", "add_parallel_args", "ints", "split_controllers"]
 
 VEHICLES = ["f1tenth", "fullsize"]
 CACHE_HELP = "trained-model cache (default: $RKMPC_CACHE_DIR, else ~/.cache/rkmpc)"
+
+
+def add_force_arg(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--force",
+        action="store_true",
+        help="replace the --out folder of an earlier run as a whole (refused otherwise)",
+    )
 
 
 def add_parallel_args(parser: argparse.ArgumentParser) -> None:
@@ -19,6 +27,7 @@ def add_parallel_args(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--backend", default="loky", choices=["loky", "dask", "ray"], help="where jobs run")
     parser.add_argument("--address", default=None, help="scheduler address of a running dask or ray cluster")
     parser.add_argument("--out", required=True, type=Path, help="output folder")
+    add_force_arg(parser)
 
 
 def split_controllers(text: str) -> list[str]:

@@ -68,13 +68,15 @@ def cmd_study(args: argparse.Namespace) -> int:
 
     from rkmpc.analysis.plots import save_figure
     from rkmpc.analysis.study_plots import plot_cars_study, plot_data_study
-    from rkmpc.core.io import write_json_atomic, write_text_atomic
+    from rkmpc.core.io import check_output_folder, output_folder, write_json_atomic, write_text_atomic
     from rkmpc.experiments.parallel import limit_threads
     from rkmpc.experiments.studies.cars import CarsStudyConfig, study_cars
     from rkmpc.experiments.studies.common import expand_tracks
     from rkmpc.experiments.studies.data import DataStudyConfig, study_data
     from rkmpc.experiments.studies.tracks import TracksStudyConfig, study_tracks
 
+    # The folder is checked before hours of runs, and made when they are done.
+    check_output_folder(args.out, force=args.force, markers=(f"study_{args.study}.json",))
     limit_threads()  # this process trains too (the KMPC model, or jobs when --jobs 1)
     console = Console(stderr=True)
     where = {"n_jobs": args.jobs, "backend": args.backend, "address": args.address}
@@ -111,12 +113,13 @@ def cmd_study(args: argparse.Namespace) -> int:
             epochs=args.epochs,
         )
         result = study_data(data_config, **where, progress=_study_progress(console))
-    # The results first: a figure that fails must not lose hours of runs.
-    text = result.to_markdown()
     stem = f"study_{args.study}"
-    write_json_atomic(args.out / f"{stem}.json", result.to_json())
-    write_text_atomic(args.out / f"{stem}.md", text)
+    text = result.to_markdown()
+    with output_folder(args.out, force=args.force, markers=(f"{stem}.json",)) as out:
+        write_json_atomic(out / f"{stem}.json", result.to_json())
+        write_text_atomic(out / f"{stem}.md", text)
     print(text)
+    # The figure last, into the finished folder: a figure that fails must not lose hours of runs.
     if args.study == "cars":
         save_figure(plot_cars_study(*result.plot_data()), args.out / "study_cars.png")
     elif args.study == "data":

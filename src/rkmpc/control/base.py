@@ -32,7 +32,8 @@ from time import perf_counter
 from typing import TYPE_CHECKING
 
 from rkmpc.core.angles import wrap_scalar
-from rkmpc.core.errors import ParameterError
+from rkmpc.core.errors import ParameterError, raise_if_interrupted
+from rkmpc.core.interrupt import check_interrupted
 from rkmpc.core.observation import Command, Observation
 
 if TYPE_CHECKING:
@@ -221,6 +222,7 @@ class Controller(ABC):
         """
         t0 = perf_counter()
         command, status, message = self._guarded_step(observation)
+        check_interrupted()  # Ctrl-C that a solver swallowed during the step ends the run here
         elapsed = perf_counter() - t0
         self.step_count += 1
         self.status_counts[status] += 1
@@ -238,6 +240,7 @@ class Controller(ABC):
         try:
             command, status, message = self._step(observation)
         except Exception as exc:  # a run must never crash on a controller's error
+            raise_if_interrupted(exc)  # but Ctrl-C inside a solver ends it
             _LOG.debug("%s step %d raised", self.name, self.step_count, exc_info=True)
             return stop_command(self._last_command), "exception", f"{type(exc).__name__}: {exc}"
         if not (math.isfinite(command.speed) and math.isfinite(command.steer)):

@@ -56,6 +56,26 @@ class BagError(InputFileError):
         super().__init__(path, problem, ", ".join(where) if where else None)
 
 
+class OutputError(RkmpcError):
+    """An output file or folder cannot be written as asked (in use, a folder for a file, ...)."""
+
+
+def raise_if_interrupted(exc: BaseException) -> None:
+    """Raise :class:`KeyboardInterrupt` when ``exc`` was caused by one (Ctrl-C inside a C solver).
+
+    CasADi turns a Ctrl-C that arrives during an IPOPT solve into a ``SystemError`` whose cause
+    (or context) chain ends in the :class:`KeyboardInterrupt`; code that catches every solver
+    error calls this first, so that Ctrl-C still ends the run.
+    """
+    seen: set[int] = set()
+    current: BaseException | None = exc
+    while current is not None and id(current) not in seen:
+        if isinstance(current, KeyboardInterrupt):
+            raise KeyboardInterrupt from None
+        seen.add(id(current))
+        current = current.__cause__ or current.__context__
+
+
 class ParameterError(RkmpcError, ValueError):
     """A parameter set failed validation (names the parameter and the problem)."""
 

@@ -12,6 +12,7 @@ import contextlib
 import json
 import math
 import os
+import shutil
 import tempfile
 import zipfile
 import zlib
@@ -21,10 +22,19 @@ from typing import IO, Any
 
 import numpy as np
 
-from rkmpc.core.errors import InputFileError
+from rkmpc.core.errors import InputFileError, OutputError
 from rkmpc.core.jsonutil import json_default
 
-__all__ = ["MAX_NPZ_BYTES", "atomic_write", "read_npz", "write_json_atomic", "write_text_atomic"]
+__all__ = [
+    "MAX_NPZ_BYTES",
+    "atomic_write",
+    "check_output_file",
+    "check_output_folder",
+    "output_folder",
+    "read_npz",
+    "write_json_atomic",
+    "write_text_atomic",
+]
 
 #: Largest total size (bytes) of the arrays an ``.npz`` file may declare: 512 MiB, about four
 #: million transitions of a data set (over 50 hours at 20 Hz) and thousands of times any model
@@ -64,6 +74,97 @@ def atomic_write(path: str | Path, mode: str = "w", *, suffix: str = ".tmp") -> 
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def check_output_file(path: str | Path) -> None:
+    """Raise :class:`OutputError` when a file cannot be written at ``path`` (checked before any work).
+
+    ``path`` must not be a folder, and its nearest existing ancestor must be a writable folder. An
+    existing file is replaced (atomically) when the work is done.
+    """
+    path = Path(path)
+    if path.is_dir():
+        raise OutputError(f"{path} is a folder; give the name of the file to write")
+    parent = path.parent
+    while not parent.exists() and parent != parent.parent:
+        parent = parent.parent
+    if not parent.is_dir():
+        raise OutputError(f"cannot write {path}: {parent} is a file, not a folder")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise OutputError(f"cannot write {path}: no permission to write in {parent}")
+
+
+def check_output_folder(out: str | Path, *, force: bool, markers: tuple[str, ...]) -> bool:
+    """Whether ``out`` is an earlier output to replace; :class:`OutputError` when it may not be used.
+
+    A missing or empty folder is used as it is. A folder with anything in it is refused unless
+    ``force``, and even then only when it holds one of ``markers`` (the file every completed output
+    of the command has), so that ``--force`` never deletes a folder rkmpc did not write.
+    """
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise OutputError(f"{out} is a file, not a folder")
+    if not out.exists() or not any(out.iterdir()):
+        return False
+    if not force:
+        raise OutputError(
+            f"{out} exists and is not empty (an earlier run's output?); "
+            "choose another --out, or pass --force to replace it"
+        )
+    if not any((out / marker).is_file() for marker in markers):
+        raise OutputError(f"{out} is not an rkmpc output (no {' or '.join(markers)}); not replacing it")
+    return True
+
+
+@contextlib.contextmanager
+def output_folder(out: str | Path, *, force: bool, markers: tuple[str, ...]) -> Iterator[Path]:
+    """A new folder to write a run's outputs in; it becomes ``out`` only when the run succeeds.
+
+    ``out`` is first checked (:func:`check_output_folder`). The outputs are written into a hidden
+    temporary sibling folder, which is renamed to ``out`` when the block ends without error
+    (replacing an earlier output as a whole with ``force``). When the block raises (an error,
+    Ctrl-C), the temporary folder is removed, with any parent folder made for it: a failed run
+    leaves ``out`` as it was and nothing half-written.
+
+    Parameters
+    ----------
+    out : str or Path
+        The output folder.
+    force : bool
+        Replace an earlier output (one holding one of ``markers``).
+    markers : tuple of str
+        File names, one of which every completed output of the command holds.
+
+    Yields
+    ------
+    Path
+        The folder to write in (not ``out``: name files relative to it).
+    """
+    out = Path(out)
+    replace = check_output_folder(out, force=force, markers=markers)
+    made = [p for p in (out.parent, *out.parent.parents) if not p.exists()]
+    out.parent.mkdir(parents=True, exist_ok=True)
+    work = Path(tempfile.mkdtemp(dir=out.parent, prefix=f".{out.name}.", suffix=".tmp"))
+    try:
+        os.chmod(work, 0o777 & ~_umask())  # mkdtemp's folder is private: make it like any new one
+        yield work
+        if replace:
+            old = work.with_suffix(".old")
+            os.replace(out, old)
+            try:
+                os.replace(work, out)
+            except OSError:
+                os.replace(old, out)
+                raise
+            shutil.rmtree(old, ignore_errors=True)
+        else:
+            os.replace(work, out)  # also over an empty folder; fails if another run filled it meanwhile
+    except BaseException:
+        shutil.rmtree(work, ignore_errors=True)
+        for folder in made:  # deepest first; only those still empty
+            with contextlib.suppress(OSError):
+                folder.rmdir()
         raise
 
 

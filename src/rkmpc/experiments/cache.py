@@ -14,9 +14,11 @@ variable ``RKMPC_CACHE_DIR``, ``$XDG_CACHE_HOME/rkmpc``, ``~/.cache/rkmpc``.
 
 from __future__ import annotations
 
+import fcntl
 import hashlib
 import json
 import os
+import warnings
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -106,21 +108,44 @@ class ModelCache:
         """
         key = spec_key(spec)
         path = self.path_for(spec)
-        info_path = path.with_suffix(".json")
-        if path.exists() and info_path.exists():
-            try:
-                model = KoopmanModel.load(path)
-                stored = json.loads(info_path.read_text())
-                if (
-                    isinstance(stored, dict)
-                    and stored.get("key") == key
-                    and isinstance(stored.get("info"), dict)
-                ):
-                    return model, CacheHit(key, path, True, dict(stored["info"]))
-            except (InputFileError, OSError, ValueError):
-                pass  # unreadable or foreign: train again and overwrite
-        model, info = build()
         self.directory.mkdir(parents=True, exist_ok=True)
-        model.save(path, metadata={**model.metadata_, "cache_spec": dict(spec)})
-        write_json_atomic(info_path, {"key": key, "spec": dict(spec), "info": info})
-        return model, CacheHit(key, path, False, info)
+        # One process trains a slot at a time; another asking for it waits, then reads it.
+        with open(path.with_suffix(".lock"), "a") as lock:
+            fcntl.flock(lock, fcntl.LOCK_EX)
+            try:
+                cached = self._read(spec, key, path)
+                if cached is not None:
+                    return cached
+                model, info = build()
+                model.save(path, metadata={**model.metadata_, "cache_spec": dict(spec)})
+                write_json_atomic(path.with_suffix(".json"), {"key": key, "spec": dict(spec), "info": info})
+                return model, CacheHit(key, path, False, info)
+            finally:
+                fcntl.flock(lock, fcntl.LOCK_UN)
+
+    def _read(self, spec: Mapping[str, Any], key: str, path: Path) -> tuple[KoopmanModel, CacheHit] | None:
+        """The model stored for ``key``, or None (with a warning when the slot is unusable)."""
+        info_path = path.with_suffix(".json")
+        if not (path.exists() and info_path.exists()):
+            return None
+        try:
+            model = KoopmanModel.load(path)
+            stored = json.loads(info_path.read_text())
+        except (InputFileError, OSError, ValueError) as exc:
+            problem = f"unreadable ({exc})"
+        else:
+            made_for = model.metadata_["cache_spec"] if "cache_spec" in model.metadata_ else None
+            if not isinstance(stored, dict) or not isinstance(stored.get("info"), dict):
+                problem = "its description is not a JSON object with an info object"
+            elif stored.get("key") != key:
+                problem = "its description is of another model"
+            elif not isinstance(made_for, dict) or spec_key(made_for) != key:
+                problem = "it holds a model of another kind or setting"
+            else:
+                return model, CacheHit(key, path, True, dict(stored["info"]))
+        warnings.warn(f"model cache slot {path}: {problem}; training it again", CacheWarning, stacklevel=3)
+        return None
+
+
+class CacheWarning(UserWarning):
+    """A model cache slot could not be used and is trained again (it is then replaced)."""

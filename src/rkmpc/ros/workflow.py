@@ -38,7 +38,7 @@ from pathlib import Path
 from typing import Any
 
 from rkmpc.core.errors import ParameterError, RkmpcError
-from rkmpc.core.io import write_json_atomic
+from rkmpc.core.io import check_output_folder, write_json_atomic
 from rkmpc.ros.sim_config import CLOCKS
 from rkmpc.ros.workflow_report import build_report, write_report
 
@@ -182,11 +182,9 @@ class _Run:
 
 def prepare_folder(out: Path, force: bool) -> None:
     """Make ``out`` an empty folder; an earlier ``car-loop`` output only with ``force``."""
-    if out.exists() and (not out.is_dir() or any(out.iterdir())):
-        if not force:
-            raise WorkflowError(f"{out} exists and is not empty; pass --force to replace it")
-        if not (out / MARKER).is_file():
-            raise WorkflowError(f"{out} is not the output of rkmpc car-loop (no {MARKER}); not replacing it")
+    # The car files name the models by absolute path: the workflow writes in ``out`` itself, not
+    # in a temporary folder renamed at the end (:func:`rkmpc.core.io.output_folder`).
+    if check_output_folder(out, force=force, markers=(MARKER,)):
         shutil.rmtree(out)
     out.mkdir(parents=True, exist_ok=True)
 

@@ -40,7 +40,7 @@ from rkmpc.control.nonlinear.models import dynamic_ode, kinematic_ode, rk4_map
 from rkmpc.control.nonlinear.nlp import SOLVERS, NMPCConfig, TrackingNLP
 from rkmpc.control.tracking import Solution, TrackingController
 from rkmpc.core.angles import branch_shift, wrap_scalar
-from rkmpc.core.errors import ParameterError
+from rkmpc.core.errors import ParameterError, raise_if_interrupted
 from rkmpc.core.observation import Observation
 from rkmpc.vehicle.params import VehicleParams
 
@@ -177,8 +177,11 @@ class KinematicNMPC(TrackingController):
             finite = bool(np.all(np.isfinite(w_opt)))
             solved = finite and self._accept(stats, status)
         except Exception as exc:  # the loop must never crash on a solver error
+            raise_if_interrupted(exc)  # but Ctrl-C during IPOPT (a SystemError from CasADi) ends it
             status = f"exception: {exc}"
             solved, finite, w_opt, sol = False, False, w0, {}
+        if status == "User_Requested_Stop":  # IPOPT's own word for a Ctrl-C during the solve
+            raise KeyboardInterrupt
         self.last_status = status
         if finite and (solved or status in ("Maximum_Iterations_Exceeded", "Maximum_CpuTime_Exceeded")):
             states = w_opt[: self._n_xvars].reshape(n + 1, nx).copy()
