@@ -346,6 +346,14 @@ def _drive(
                 f"{name}: the lap took longer than {config.timeout:g} s; see {run.log_of(sim)}"
             )
         time.sleep(0.2)
+    if sim.returncode != 0 and not (folder / "sim" / "summary.json").is_file():
+        # The car failed without a lap to report (a bad track, say; a lap that ends off the track
+        # exits 1 too, with its summary): its log says why. The node, stopped now, may not yet
+        # have got as far as its own error.
+        run.stop(node)
+        raise WorkflowError(
+            f"{name}: rkmpc sim-node failed (exit {sim.returncode}): {_tail(run.log_of(sim).read_text())}"
+        )
     node_code = run.stop(node)
     if node_code != 0:
         raise WorkflowError(
