@@ -94,3 +94,20 @@ def test_dask_without_client_is_a_clear_error():
     pytest.importorskip("distributed")
     with pytest.raises(ParameterError, match="Client"):
         run_jobs(JOBS, backend="dask")
+
+
+def test_no_more_workers_than_jobs(monkeypatch):
+    """--jobs 8 for two jobs starts two workers, and each still runs on one thread."""
+    import rkmpc.experiments.parallel as parallel
+
+    seen = []
+    real = parallel._backend_config
+
+    def spy(backend, n_jobs, address):
+        seen.append(n_jobs)
+        return real(backend, n_jobs, address)
+
+    monkeypatch.setattr(parallel, "_backend_config", spy)
+    out = run_jobs([JOBS[1], JOBS[-1]], n_jobs=8, backend="loky")
+    assert seen == [2]
+    assert [o.value for o in out] == [1, "1"]

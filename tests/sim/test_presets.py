@@ -68,6 +68,7 @@ def _identity_model():
     )
 
 
+@pytest.mark.filterwarnings("ignore:the built-in track")  # builds the controllers, drives nothing
 def test_rkmpc_on_the_fullsize_car_drives_on_the_tuned_lmpc():
     sc = load_scenario("builtin", vehicle="fullsize")
     preset = VEHICLES["fullsize"]
@@ -90,7 +91,20 @@ def test_compare_takes_the_residual_settings_of_the_car_unless_given():
     assert small.residual_config("rkmpc") is ResidualKoopmanMPC.default_config
 
 
+@pytest.mark.filterwarnings("ignore:the built-in track")  # builds the controllers, drives nothing
 def test_excitation_asks_twice_the_profile_limit_at_most_the_grip():
     assert excitation_lateral_accel(load_scenario("builtin")) == 8.0
     full = load_scenario("builtin", vehicle="fullsize")
     assert excitation_lateral_accel(full) == pytest.approx(full.vehicle.mu * full.vehicle.gravity)
+
+
+def test_a_misspelt_track_name_suggests_the_built_in_ones():
+    with pytest.raises(ValueError, match=r"unknown track 'bultin'.*did you mean 'builtin'"):
+        load_scenario("bultin")
+    with pytest.raises(ValueError, match=r"built-in tracks: builtin, oval"):
+        load_scenario("monza")
+
+
+def test_the_full_size_car_on_a_built_in_track_is_warned_about():
+    with pytest.warns(UserWarning, match="made at 1:10"):
+        load_scenario("builtin", vehicle="fullsize")

@@ -181,3 +181,13 @@ def test_find_self_intersection() -> None:
     assert find_self_intersection(bowtie) == (0, 2)
     folded = np.array([[0.0, 0.0], [2.0, 0.0], [1.0, 0.0], [1.0, 1.0]])
     assert find_self_intersection(folded) is not None
+
+
+def test_a_byte_order_mark_is_not_part_of_the_header(tmp_path: FilePath) -> None:
+    """Excel's 'CSV UTF-8' starts the file with a byte-order mark; the header still reads."""
+    plain = load_centerline(
+        write_csv(tmp_path / "plain.csv", circle_rows(), header="x_m,y_m,w_tr_right_m,w_tr_left_m")
+    )
+    path = tmp_path / "excel.csv"
+    path.write_bytes(b"\xef\xbb\xbf" + (tmp_path / "plain.csv").read_bytes())
+    assert load_centerline(path).length == pytest.approx(plain.length)

@@ -12,6 +12,7 @@ import contextlib
 import sys
 import warnings
 from collections.abc import Callable, Sequence
+from importlib.metadata import version as package_version
 from pathlib import Path
 
 from rkmpc.cli.bags import add_bag_args, cmd_collect_from_bag
@@ -80,6 +81,7 @@ def build_parser() -> argparse.ArgumentParser:
     from rkmpc.learning.recipes import model_kinds
 
     parser = argparse.ArgumentParser(prog="rkmpc", description=__doc__)
+    parser.add_argument("--version", action="version", version=f"rkmpc {package_version('rkmpc')}")
     sub = parser.add_subparsers(dest="command", required=True)
     run = sub.add_parser("run", help="drive one controller around a track")
     run.add_argument("--controller", required=True, choices=sorted(CONTROLLERS))

@@ -237,6 +237,8 @@ def run_jobs(
     if total == 0:
         return []
     single_thread = not (backend == "loky" and n_jobs == 1)
+    if backend == "loky" and n_jobs > total:
+        n_jobs = total  # no more workers than jobs (the threads per job stay as asked, above)
     outcomes: list[JobOutcome | None] = [None] * total
     config, started_ray = _backend_config(backend, n_jobs, address)
     calls = (joblib.delayed(_run_one)(i, job, single_thread) for i, job in enumerate(jobs))

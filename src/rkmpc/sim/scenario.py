@@ -6,6 +6,8 @@ names the vehicle presets and their default speed limits in one place.
 
 from __future__ import annotations
 
+import difflib
+import warnings
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -125,6 +127,24 @@ VEHICLES: dict[str, VehiclePreset] = {
 }
 
 
+#: Scale of the built-in tracks: they are generated at 1:10, for the f1tenth car.
+BUILTIN_SCALE = 0.1
+
+
+def _refuse_unknown_name(track: str | Path) -> None:
+    """A bare name that is neither a built-in track nor a file: say so, with the closest names."""
+    text = str(track)
+    if Path(text).exists() or Path(text).suffix or "/" in text or "\\" in text:
+        return  # a path: the loader names what is wrong with it
+    names = list_builtin_tracks()
+    close = difflib.get_close_matches(text, names, n=3, cutoff=0.5)
+    hint = f"did you mean {' or '.join(repr(n) for n in close)}? " if close else ""
+    raise ValueError(
+        f"unknown track {text!r}: not a built-in track and no such file; {hint}"
+        f"built-in tracks: {', '.join(names)}; or give a centre-line CSV file"
+    )
+
+
 @dataclass(frozen=True)
 class Scenario:
     """Everything a closed-loop run needs besides the controller.
@@ -242,12 +262,21 @@ def load_scenario(
     the_car = None if car is None else get_car(car)
     params = preset.params()
     if str(track) in list_builtin_tracks():
+        if preset.file_scale != BUILTIN_SCALE:
+            warnings.warn(
+                f"the built-in track {str(track)!r} is made at 1:10 for the f1tenth car: the {vehicle} car "
+                "will not stay on it; give a track file at full scale (e.g. "
+                "../shared/tracks/centerlines/Monza.csv)",
+                UserWarning,
+                stacklevel=2,
+            )
         the_track = builtin_track(str(track))
         if scale is not None and scale != 1.0:
             raise ValueError("built-in tracks are generated at their own scale; --scale applies to files")
         if raceline is not None:
             the_track = the_track.with_raceline(load_raceline(raceline, scale=1.0))
     else:
+        _refuse_unknown_name(track)
         file_scale = preset.file_scale if scale is None else scale
         the_track = load_track(track, raceline, scale=file_scale)
     the_limits = limits if limits is not None else preset.limits

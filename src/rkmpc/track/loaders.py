@@ -84,7 +84,7 @@ def _read_columns(path: FilePath, required: tuple[str, ...]) -> dict[str, FloatA
     if not path.is_file():
         raise InputFileError(path, "file does not exist or is not a regular file")
     try:
-        text = path.read_text(encoding="utf-8")
+        text = path.read_text(encoding="utf-8-sig")  # a byte-order mark (Excel exports) is not data
     except (OSError, UnicodeDecodeError) as exc:
         raise InputFileError(path, f"cannot read file: {exc}") from exc
 
