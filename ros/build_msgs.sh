@@ -8,6 +8,9 @@ set -euo pipefail
 venv=$(cd "${1:?usage: $0 VENV}" && pwd)
 here=$(cd "$(dirname "$0")" && pwd)
 build="$venv/build/ackermann_msgs"
+# A fresh build every time (about 30 s): a build folder configured from another checkout of the
+# sources (a second clone or worktree sharing the venv) would be refused by cmake.
+rm -rf "$build"
 mkdir -p "$build"
 # The generators find the type supports through the ament index of the prefix.
 export AMENT_PREFIX_PATH="$venv"
