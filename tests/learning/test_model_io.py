@@ -391,3 +391,16 @@ def test_load_model_unknown_kind(tmp_path, kind):
 def test_load_model_missing_koopman_file(tmp_path):
     with pytest.raises(InputFileError, match=r"absent\.npz"):
         load_model(tmp_path / "absent.npz", "residual")
+
+
+def test_a_model_file_of_the_other_format_says_which_it_is(tmp_path):
+    """A residual archive given to lmpc-id, or an identified JSON to rkmpc: no numpy pickle advice."""
+    archive = tmp_path / "residual.rkm"
+    _save(_koopman("residual"), archive)
+    with pytest.raises(InputFileError, match=r"learned \(Koopman\) model archive.*--kind identified"):
+        load_model(archive, "identified")
+    identified = tmp_path / "identified.json"
+    save_identified(_identified(), identified)
+    with pytest.raises(InputFileError, match=r"holds a JSON file.*'residual' model archive") as info:
+        load_model(identified, "residual")
+    assert "pickle" not in str(info.value)

@@ -76,6 +76,7 @@ def load_model(path: str | Path, kind: str) -> IdentifiedModel | KoopmanModel:
     trained on.
     """
     recipe = recipe_of_kind(kind)
+    _refuse_other_format(Path(path), kind, identified=recipe.learner == "identification")
     if recipe.learner == "identification":
         return load_identified(path)
     model = KoopmanModel.load(path)
@@ -100,3 +101,25 @@ def load_model(path: str | Path, kind: str) -> IdentifiedModel | KoopmanModel:
             field="features",
         )
     return model
+
+
+def _refuse_other_format(path: Path, kind: str, *, identified: bool) -> None:
+    """A model file of the other format (JSON for an archive, or the reverse): say which it is."""
+    try:
+        with path.open("rb") as handle:
+            head = handle.read(64).lstrip()
+    except OSError:
+        return  # the loader names what is wrong with the file
+    is_archive, is_json = head.startswith(b"PK"), head.startswith(b"{")
+    if identified and is_archive:
+        raise InputFileError(
+            path,
+            "holds a learned (Koopman) model archive, from `rkmpc train --kind residual|paper|koopman`; "
+            "lmpc-id needs an identified model, a JSON file from `rkmpc train --kind identified`",
+        )
+    if not identified and is_json:
+        raise InputFileError(
+            path,
+            f"holds a JSON file (an identified model, for lmpc-id?); this controller needs a {kind!r} "
+            f"model archive from `rkmpc train --kind {kind}`",
+        )
