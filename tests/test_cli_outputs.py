@@ -160,3 +160,30 @@ def test_sigint_during_an_nmpc_run_ends_it_with_nothing_written(tmp_path):
     assert rest.strip().splitlines()[-1] == "rkmpc: interrupted"
     assert "Traceback" not in rest
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (
+            ["run", "--controller", "lmpc", "--track", "builtin", "--laps", "0"],
+            "argument --laps: must be an integer >= 1, got 0",
+        ),
+        (
+            ["collect", "--track", "builtin", "--seed", "-5"],
+            "argument --seed: must be an integer >= 0, got -5",
+        ),
+        (
+            ["train", "--data", "x.npz", "--kind", "residual", "--epochs", "many"],
+            "argument --epochs: must be an integer >= 1",
+        ),
+    ],
+)
+def test_bad_counts_name_their_option(args, message, tmp_path, capsys):
+    from rkmpc.cli import main
+
+    with pytest.raises(SystemExit) as info:
+        main([*args, "--out", str(tmp_path / "out")])
+    assert info.value.code == 2
+    assert message in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()

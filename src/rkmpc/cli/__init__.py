@@ -16,7 +16,7 @@ from importlib.metadata import version as package_version
 from pathlib import Path
 
 from rkmpc.cli.bags import add_bag_args, cmd_collect_from_bag
-from rkmpc.cli.common import CACHE_HELP, VEHICLES, add_force_arg
+from rkmpc.cli.common import CACHE_HELP, VEHICLES, add_force_arg, at_least
 from rkmpc.cli.compare import cmd_compare
 from rkmpc.cli.ros import ROS_COMMANDS, add_ros_parsers
 from rkmpc.cli.study import add_study_parser, cmd_study
@@ -36,8 +36,8 @@ def _add_scenario_args(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--car", default=None, help="drive a car of the zoo (gym, overshoot, ..., random-<seed>) instead"
     )
-    parser.add_argument("--laps", type=int, default=1)
-    parser.add_argument("--seed", type=int, default=0, help="seed of every random choice (noise)")
+    parser.add_argument("--laps", type=at_least(1), default=1)
+    parser.add_argument("--seed", type=at_least(0), default=0, help="seed of every random choice (noise)")
     parser.add_argument("--noise", action="store_true", help="add measurement noise to the observations")
     parser.add_argument("--out", required=True, type=Path, help="output folder")
     parser.add_argument(
@@ -63,7 +63,9 @@ def _add_learning_args(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--cache-dir", type=Path, default=None, help=CACHE_HELP)
     parser.add_argument("--no-cache", action="store_true", help="train every model afresh, store nothing")
-    parser.add_argument("--epochs", type=int, default=None, help="training epochs of the learned models")
+    parser.add_argument(
+        "--epochs", type=at_least(1), default=None, help="training epochs of the learned models"
+    )
     _add_mismatch_arg(parser, "drive with --model files made with another car, period or track scale")
     add_force_arg(parser)
 
@@ -121,8 +123,8 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument("--vehicle", default="f1tenth", choices=VEHICLES, help="the car the model is for")
     train.add_argument("--dt", type=float, default=0.05, help="control period the model is for (s)")
     _add_mismatch_arg(train, "train on data recorded with another car or period")
-    train.add_argument("--epochs", type=int, default=None)
-    train.add_argument("--seed", type=int, default=0)
+    train.add_argument("--epochs", type=at_least(1), default=None)
+    train.add_argument("--seed", type=at_least(0), default=0)
     train.add_argument("--out", required=True, type=Path, help="model file")
     sub.add_parser("tracks", help="list the built-in tracks")
     add_study_parser(sub)

@@ -4,12 +4,37 @@ from __future__ import annotations
 
 import argparse
 import os
+from collections.abc import Callable
 from pathlib import Path
 
-__all__ = ["CACHE_HELP", "VEHICLES", "add_force_arg", "add_parallel_args", "ints", "split_controllers"]
+__all__ = [
+    "CACHE_HELP",
+    "VEHICLES",
+    "add_force_arg",
+    "add_parallel_args",
+    "at_least",
+    "ints",
+    "split_controllers",
+]
 
 VEHICLES = ["f1tenth", "fullsize"]
 CACHE_HELP = "trained-model cache (default: $RKMPC_CACHE_DIR, else ~/.cache/rkmpc)"
+
+
+def at_least(low: int) -> Callable[[str], int]:
+    """An argparse ``type``: an integer >= ``low``; argparse names the option in its error."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"must be an integer >= {low}, got {text!r}") from None
+        if value < low:
+            raise argparse.ArgumentTypeError(f"must be an integer >= {low}, got {value}")
+        return value
+
+    parse.__name__ = f"integer >= {low}"
+    return parse
 
 
 def add_force_arg(parser: argparse.ArgumentParser) -> None:
@@ -22,7 +47,7 @@ def add_force_arg(parser: argparse.ArgumentParser) -> None:
 
 def add_parallel_args(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
-        "--jobs", type=int, default=os.cpu_count() or 1, help="parallel jobs (default: cores)"
+        "--jobs", type=at_least(-1), default=os.cpu_count() or 1, help="parallel jobs (default: cores)"
     )
     parser.add_argument("--backend", default="loky", choices=["loky", "dask", "ray"], help="where jobs run")
     parser.add_argument("--address", default=None, help="scheduler address of a running dask or ray cluster")

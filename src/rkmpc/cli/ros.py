@@ -9,7 +9,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from rkmpc.cli.common import VEHICLES
+from rkmpc.cli.common import VEHICLES, at_least
 from rkmpc.core.errors import RkmpcError
 
 __all__ = ["ROS_COMMANDS", "add_car_loop_parser", "add_ros_parsers"]
@@ -51,7 +51,7 @@ def add_ros_parsers(sub: Any) -> None:
     sim.add_argument(
         "--clock", default="realtime", choices=["realtime", "lockstep"], help="wall clock, or lock-step"
     )
-    sim.add_argument("--laps", type=int, default=1, help="laps before the node reports and exits")
+    sim.add_argument("--laps", type=at_least(1), default=1, help="laps before the node reports and exits")
     sim.add_argument("--period", type=float, default=0.05, help="control period in lock-step (s)")
     sim.add_argument("--physics-rate", type=float, default=100.0, help="physics steps per second")
     sim.add_argument(
@@ -61,7 +61,7 @@ def add_ros_parsers(sub: Any) -> None:
     sim.add_argument(
         "--standstill", action="store_true", help="start at rest instead of at the reference speed"
     )
-    sim.add_argument("--seed", type=int, default=0)
+    sim.add_argument("--seed", type=at_least(0), default=0)
     sim.add_argument("--odometry-topic", default="/ego_racecar/odom")
     sim.add_argument("--drive-topic", default="/drive")
     sim.add_argument("--steering-topic", default="", help="publish the true wheel angle here (Float64, rad)")
@@ -98,7 +98,9 @@ def add_car_loop_parser(sub: Any) -> None:
         metavar="SECONDS",
         help="added actuation delay of the latency-compensation runs (LMPC, RKMPC); 0 skips them",
     )
-    loop.add_argument("--seed", type=int, default=0, help="seed of the simulated car and the training")
+    loop.add_argument(
+        "--seed", type=at_least(0), default=0, help="seed of the simulated car and the training"
+    )
     loop.add_argument("--domain-id", type=int, default=None, help="ROS_DOMAIN_ID (default: from the pid)")
     loop.add_argument(
         "--timeout", type=float, default=3600.0, help="bound of each process (s), against hangs"

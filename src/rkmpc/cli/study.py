@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from rkmpc.cli.common import CACHE_HELP, VEHICLES, add_parallel_args, ints, split_controllers
+from rkmpc.cli.common import CACHE_HELP, VEHICLES, add_parallel_args, at_least, ints, split_controllers
 
 __all__ = ["add_study_parser", "cmd_study"]
 
@@ -32,7 +32,9 @@ def add_study_parser(sub: Any) -> None:
     tracks.add_argument("--vehicle", default="f1tenth", choices=VEHICLES)
     tracks.add_argument("--kmpc-samples", type=int, default=50_000)
     tracks.add_argument("--fault", default=None, help="also drive every controller with this fault")
-    tracks.add_argument("--epochs", type=int, default=None, help="training epochs of the learned models")
+    tracks.add_argument(
+        "--epochs", type=at_least(1), default=None, help="training epochs of the learned models"
+    )
     tracks.add_argument("--cache-dir", type=Path, default=None, help=CACHE_HELP)
     add_parallel_args(tracks)
     cars = kinds.add_parser("cars", help="every controller on cars of the zoo it was not built for")
@@ -41,7 +43,9 @@ def add_study_parser(sub: Any) -> None:
     cars.add_argument("--controllers", default=",".join(CARS_CONTROLLERS))
     cars.add_argument("--seeds", default="0")
     cars.add_argument("--kmpc-samples", type=int, default=50_000)
-    cars.add_argument("--epochs", type=int, default=None, help="training epochs of the learned models")
+    cars.add_argument(
+        "--epochs", type=at_least(1), default=None, help="training epochs of the learned models"
+    )
     cars.add_argument("--cache-dir", type=Path, default=None, help=CACHE_HELP)
     add_parallel_args(cars)
     data = kinds.add_parser("data", help="RKMPC against KMPC as the number of training samples grows")
@@ -51,7 +55,9 @@ def add_study_parser(sub: Any) -> None:
     data.add_argument("--sizes", default=",".join(str(n) for n in DEFAULT_SIZES), help="training samples")
     data.add_argument("--seeds", default="0,1,2")
     data.add_argument("--controllers", default="rkmpc,kmpc")
-    data.add_argument("--epochs", type=int, default=None, help="training epochs (default: the models' own)")
+    data.add_argument(
+        "--epochs", type=at_least(1), default=None, help="training epochs (default: the models' own)"
+    )
     add_parallel_args(data)
 
 
