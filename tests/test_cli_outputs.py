@@ -187,3 +187,21 @@ def test_bad_counts_name_their_option(args, message, tmp_path, capsys):
     assert info.value.code == 2
     assert message in capsys.readouterr().err
     assert not (tmp_path / "out").exists()
+
+
+def test_help_shows_defaults_and_the_version(capsys):
+    from importlib.metadata import version
+
+    from rkmpc.cli import main
+
+    with pytest.raises(SystemExit):
+        main(["compare", "-h"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert "(default: 2)" in text and "(default: 50000)" in text  # --data-laps, --kmpc-samples
+    assert "(default: None)" not in text and "(default: False)" not in text
+    with pytest.raises(SystemExit):
+        main(["collect", "-h"])
+    assert "output data set file (.npz)" in " ".join(capsys.readouterr().out.split())
+    with pytest.raises(SystemExit) as info:
+        main(["--version"])
+    assert info.value.code == 0 and capsys.readouterr().out.strip() == f"rkmpc {version('rkmpc')}"

@@ -14,6 +14,7 @@ import warnings
 from collections.abc import Callable, Sequence
 from importlib.metadata import version as package_version
 from pathlib import Path
+from typing import Any
 
 from rkmpc.cli.bags import add_bag_args, cmd_collect_from_bag
 from rkmpc.cli.common import CACHE_HELP, VEHICLES, add_force_arg, at_least
@@ -24,7 +25,7 @@ from rkmpc.core.errors import IdentificationWarning, RkmpcError
 from rkmpc.core.interrupt import interruptible
 
 
-def _add_scenario_args(parser: argparse.ArgumentParser) -> None:
+def _add_scenario_args(parser: argparse.ArgumentParser, out_help: str = "output folder") -> None:
     parser.add_argument("--track", default="builtin", help="built-in track name or TUM centre-line CSV")
     parser.add_argument(
         "--raceline", default=None, help="TUM race-line CSV to track instead of the centre line"
@@ -39,7 +40,7 @@ def _add_scenario_args(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--laps", type=at_least(1), default=1)
     parser.add_argument("--seed", type=at_least(0), default=0, help="seed of every random choice (noise)")
     parser.add_argument("--noise", action="store_true", help="add measurement noise to the observations")
-    parser.add_argument("--out", required=True, type=Path, help="output folder")
+    parser.add_argument("--out", required=True, type=Path, help=out_help)
     parser.add_argument(
         "--model",
         action="append",
@@ -76,13 +77,46 @@ def _add_mismatch_arg(parser: argparse.ArgumentParser, what: str) -> None:
     )
 
 
+_DESCRIPTION = (
+    "Residual Koopman MPC for cars on race tracks: drive a controller (run), learn on a track and "
+    "compare controllers (compare, the paper's Table I), record and train (collect, train), studies "
+    "over tracks, cars and data volume (study), and on a car over ROS 2 (node, sim-node, car-loop). "
+    "'rkmpc COMMAND -h' lists a command's options with their defaults."
+)
+
+
+class _DefaultsFormatter(argparse.HelpFormatter):
+    """Adds ``(default: X)`` to an option's help where there is a default to tell and the help does not."""
+
+    def _get_help_string(self, action: argparse.Action) -> str | None:
+        text = action.help or ""
+        default = action.default
+        if (
+            not action.option_strings
+            or default in (None, False, argparse.SUPPRESS)
+            or default == []
+            or "default" in text
+            or "%(default)" in text
+        ):
+            return action.help
+        return f"{text} (default: %(default)s)".strip()
+
+
+class _Parser(argparse.ArgumentParser):
+    """Every (sub)command's help shows the options' defaults."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        kwargs.setdefault("formatter_class", _DefaultsFormatter)
+        super().__init__(*args, **kwargs)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``rkmpc`` command."""
     from rkmpc.control.registry import CONTROLLERS
     from rkmpc.experiments.compare import ALL_CONTROLLERS
     from rkmpc.learning.recipes import model_kinds
 
-    parser = argparse.ArgumentParser(prog="rkmpc", description=__doc__)
+    parser = _Parser(prog="rkmpc", description=_DESCRIPTION)
     parser.add_argument("--version", action="version", version=f"rkmpc {package_version('rkmpc')}")
     sub = parser.add_subparsers(dest="command", required=True)
     run = sub.add_parser("run", help="drive one controller around a track")
@@ -114,7 +148,7 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="LOG",
         help="instead: turn an earlier run's log.csv into data",
     )
-    _add_scenario_args(collect)
+    _add_scenario_args(collect, out_help="output data set file (.npz)")
     add_bag_args(collect)
     collect.set_defaults(laps=2)
     train = sub.add_parser("train", help="train a model from a data set")
