@@ -60,3 +60,13 @@ def test_boundaries_and_reference_path() -> None:
     assert tr2.width_left(1.0) == pytest.approx(2.0)
     with pytest.raises(ParameterError):
         Track("x", c, 1.0, 1.0, scale=0.0)
+
+
+def test_a_race_line_off_the_track_is_refused() -> None:
+    """A race line 500 m away (another track, unit or scale) would be tracked with 'no error'."""
+    th = np.linspace(0.0, 2 * np.pi, 80, endpoint=False)
+    far = Path.from_points(np.column_stack([500 + 9.5 * np.cos(th), 9.5 * np.sin(th)]), source="far.csv")
+    with pytest.raises(ParameterError, match=r"far\.csv leaves the track.*outside its boundary"):
+        Track("ring", ring(10.0), 1.0, 2.0, raceline=far)
+    # Near the boundary (0.5 m outside a 3 m wide track) is still a race line.
+    Track("ring", ring(10.0), 1.0, 2.0, raceline=ring(11.5))

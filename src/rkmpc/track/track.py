@@ -125,6 +125,28 @@ class Track:
         self._width_specs = (width_right, width_left)
         self._wr = _PeriodicWidth(width_right, centerline.length, "right")
         self._wl = _PeriodicWidth(width_left, centerline.length, "left")
+        if raceline is not None:
+            self._check_raceline(raceline)
+
+    def _check_raceline(self, raceline: Path, samples: int = 400) -> None:
+        """Refuse a race line that leaves the track by more than the track's half-width.
+
+        A race line of another track, another unit or another scale would otherwise be tracked
+        as the reference, and every error measured against it, while the car is off the track.
+        """
+        s_hint = None
+        for s in np.linspace(0.0, raceline.length, samples, endpoint=False):
+            x, y = (float(v) for v in raceline.position(s))
+            s_center, _, margin = self.boundary_offsets(x, y, s_hint)
+            s_hint = s_center
+            half = 0.5 * (float(self._wl(s_center)) + float(self._wr(s_center)))
+            if margin < -half:
+                where = raceline.source or "the race line"
+                raise ParameterError(
+                    f"Track {self.name!r}: {where} leaves the track: at s = {s:.1f} m of the race line, "
+                    f"({x:.2f}, {y:.2f}) m is {-margin:.2f} m outside its boundary (the track is "
+                    f"{2 * half:.2f} m wide there); a race line of another track, unit or scale?"
+                )
 
     def width_right(self, s: ArrayLike) -> FloatArray | float:
         """Distance (m) from the centerline to the right boundary at centerline arc length ``s`` (m)."""
