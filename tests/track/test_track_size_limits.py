@@ -42,3 +42,14 @@ def test_an_endless_time_limit_is_refused():
     with pytest.raises(ParameterError, match="max_time must be finite"):
         SimConfig(max_time=float("inf"))
     assert MAX_STEPS * SimConfig().dt > 24 * 3600
+
+
+def test_latitude_and_longitude_read_as_metres_are_refused(tmp_path):
+    """A lap of a real circuit in degrees is a few hundredths of a 'metre' long."""
+    th = np.linspace(0.0, 2 * np.pi, 60, endpoint=False)
+    lat, lon = 48.26 + 0.004 * np.sin(th), 11.55 + 0.006 * np.cos(th)
+    path = tmp_path / "gps.csv"
+    rows = "\n".join(f"{x},{y},5.0,5.0" for x, y in zip(lon, lat, strict=True))
+    path.write_text("# x_m,y_m,w_tr_right_m,w_tr_left_m\n" + rows + "\n")
+    with pytest.raises(InputFileError, match=r"degrees \(latitude, longitude\)"):
+        load_centerline(path)

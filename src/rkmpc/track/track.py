@@ -19,10 +19,20 @@ __all__ = ["MAX_TRACK_LENGTH", "Track", "WidthSpec", "track_length_problem"]
 MAX_TRACK_LENGTH = 100_000.0
 
 
+#: Shortest line accepted as a track (m): far below any track a car fits on, far above a lap of
+#: latitude/longitude degrees read as metres (a few hundredths of a "metre").
+MIN_TRACK_LENGTH = 1.0
+
+
 def track_length_problem(length: float) -> str | None:
     """Why a line ``length`` m long is no track (None when it is fine)."""
-    if math.isfinite(length) and length <= MAX_TRACK_LENGTH:
+    if math.isfinite(length) and MIN_TRACK_LENGTH <= length <= MAX_TRACK_LENGTH:
         return None
+    if math.isfinite(length) and length < MIN_TRACK_LENGTH:
+        return (
+            f"the line is {length:.4g} m long, less than {MIN_TRACK_LENGTH:g} m: coordinates in degrees "
+            "(latitude, longitude) or another unit? x_m and y_m are metres"
+        )
     return (
         f"the line is {length:.4g} m long, more than {MAX_TRACK_LENGTH / 1000:g} km: coordinates in "
         "another unit (mm?) or a wrong scale?"
