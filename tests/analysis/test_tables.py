@@ -223,3 +223,20 @@ def test_rich_table_without_baseline():
     assert len(alone.columns) == N_COLUMNS
     assert alone.row_count == 1
     assert len(rich_table(RESULTS, "t", baseline=None).columns) == N_COLUMNS
+
+
+def test_the_table_fits_a_narrow_terminal_without_cutting_a_cell():
+    from rich.console import Console
+
+    from rkmpc.analysis.tables import rich_tables_fitting
+
+    assert len(rich_tables_fitting(RESULTS, "builtin", width=400)) == 1  # wide enough: as it was
+    tables = rich_tables_fitting(RESULTS, "builtin", width=80)
+    console = Console(width=80, record=True)
+    for table in tables:
+        console.print(table)
+    text = console.export_text()
+    assert max(len(line) for line in text.splitlines()) <= 80
+    assert "…" not in text  # rich marks a cut cell with an ellipsis
+    for name in RESULTS:
+        assert name in text

@@ -155,3 +155,41 @@ def rich_table(results: Mapping[str, Mapping[str, Any]], title: str, baseline: s
     for row in table_rows(results, baseline if with_change else None):
         table.add_row(*row)
     return table
+
+
+def rich_tables_fitting(
+    results: Mapping[str, Mapping[str, Any]], title: str, width: int, baseline: str | None = "lmpc"
+) -> list[Any]:
+    """The comparison as :class:`rich.table.Table` objects that fit ``width`` columns.
+
+    The one wide table (:func:`rich_table`) when it fits; otherwise turned on its side (a row per
+    metric, a column per controller), the controllers split over as many tables as it takes, so
+    that no cell is cut in a narrow terminal.
+    """
+    from rich.console import Console
+    from rich.table import Table
+
+    wide = rich_table(results, title, baseline)
+    if Console(width=10_000).measure(wide).maximum <= width:
+        return [wide]
+    with_change = baseline is not None and baseline in results and len(results) > 1
+    header = table_header(with_change)
+    columns = {row[0]: row[1:] for row in table_rows(results, baseline if with_change else None)}
+    if with_change:  # the changes against the baseline, one per row: narrow columns
+        header = [*header[:-1], *(f"vs {baseline}: {what}" for what in ("lat", "head", "rate"))]
+        columns = {name: [*cells[:-1], *cells[-1].split(" / ")] for name, cells in columns.items()}
+    label = max(len(h) for h in header[1:]) + 3
+    each = max(max(len(cell) for cell in [name, *cells]) + 3 for name, cells in columns.items())
+    per_table = max(1, (width - label - 1) // each)
+    names = list(columns)
+    tables = []
+    for start in range(0, len(names), per_table):
+        group = names[start : start + per_table]
+        table = Table(title=title if start == 0 else None)
+        table.add_column("metric")
+        for name in group:
+            table.add_column(name)
+        for i, metric in enumerate(header[1:]):
+            table.add_row(metric, *(columns[name][i] for name in group))
+        tables.append(table)
+    return tables

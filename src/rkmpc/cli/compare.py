@@ -33,7 +33,7 @@ def model_files(names: list[str], specs: list[str]) -> dict[str, str]:
 def cmd_compare(args: argparse.Namespace) -> int:
     from rich.console import Console
 
-    from rkmpc.analysis.tables import fault_table, rich_table
+    from rkmpc.analysis.tables import fault_table, rich_tables_fitting
     from rkmpc.core.io import output_folder
     from rkmpc.experiments.compare import CompareConfig, compare
     from rkmpc.experiments.report import title_of, write_comparison, write_single_run
@@ -78,7 +78,9 @@ def cmd_compare(args: argparse.Namespace) -> int:
             result = compare(config, logs=logs, on_run=on_run, say=say)
         (write_single_run if single else write_comparison)(out, result, logs, track)
     wide = Console(width=None if Console().is_terminal else 260)
-    wide.print(rich_table(result.metrics(), title_of(result)))
+    for table in rich_tables_fitting(result.metrics(), title_of(result), wide.width):
+        wide.print(table)
+    console.print(f"results in {args.out}/")
     if result.fault is not None:
         faulted = {name: run.metrics for name, run in result.fault.runs.items()}
         wide.print(fault_table(result.metrics(), faulted, result.fault.effects, result.fault.fault))
