@@ -93,7 +93,9 @@ class _DefaultsFormatter(argparse.HelpFormatter):
         default = action.default
         if (
             not action.option_strings
-            or default in (None, False, argparse.SUPPRESS)
+            or default is None
+            or default is False
+            or default == argparse.SUPPRESS
             or default == []
             or "default" in text
             or "%(default)" in text
