@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 import rkmpc.experiments.models as models
 from rkmpc.experiments.models import ModelPlan, learn_models
@@ -33,3 +34,27 @@ def test_identification_warnings_are_told_and_recorded(builtin_scenario, monkeyp
     written = record.to_json()["lmpc-id"]["identified"]
     assert written["warnings"] == list(model.warnings)
     assert written["servo_fit_r2"] is None  # no fit was made: null in results.json, not NaN
+
+
+class _Trained(Exception):
+    """Raised by the stand-in trainer once it has reported its epochs."""
+
+
+def test_training_progress_is_told_with_an_estimate(builtin_scenario, monkeypatch):
+    """The comparison's messages carry the training's epochs and the time left, not one silent line."""
+    monkeypatch.setattr(models, "collect", lambda *args, **kwargs: _held_wheel())
+
+    def fake_train(data, wheelbase, config, *, vehicle=None, on_epoch=None):
+        assert on_epoch is not None
+        for epoch in range(config.model.lifting.training.epochs + 1):
+            on_epoch(epoch, 1.0 / (epoch + 1))
+        raise _Trained
+
+    monkeypatch.setattr(models, "train_model", fake_train)
+    messages: list[str] = []
+    plan = ModelPlan(["rkmpc"], use_cache=False, epochs=20)
+    with pytest.raises(_Trained):
+        learn_models(builtin_scenario, plan, say=messages.append)
+    progress = [m for m in messages if m.startswith("training the residual model of rkmpc: epoch ")]
+    assert 10 <= len(progress) <= 12
+    assert "left" in progress[1] and progress[-1].endswith("epoch 20/20, loss 0.0476, done")

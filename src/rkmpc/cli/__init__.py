@@ -240,6 +240,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
     from rich.progress import Progress
 
     from rkmpc.core.io import check_output_file
+    from rkmpc.core.progress import EpochProgress
     from rkmpc.experiments.training import train_to_file
     from rkmpc.learning.contract import Provenance
     from rkmpc.learning.data.dataset import TransitionDataset
@@ -250,11 +251,17 @@ def _cmd_train(args: argparse.Namespace) -> int:
     vehicle = vehicle_preset(args.vehicle).params()
     made_for = Provenance(vehicle=args.vehicle, dt=args.dt, wheelbase=vehicle.wheelbase)
     console = Console(stderr=True)
+    total = args.epochs or 100
     with Progress(console=console, transient=True, disable=not console.is_terminal) as progress:
-        task = progress.add_task(f"training {args.kind}", total=args.epochs or 100)
+        task = progress.add_task(f"training {args.kind}", total=total)
+        # A bar (with the time left) on a terminal; about ten lines with an estimate in a log.
+        told = EpochProgress(console.print, f"training {args.kind}", total)
 
         def on_epoch(epoch: int, loss: float) -> None:
-            progress.update(task, completed=epoch, description=f"training {args.kind} (loss {loss:.3g})")
+            if console.is_terminal:
+                progress.update(task, completed=epoch, description=f"training {args.kind} (loss {loss:.3g})")
+            else:
+                told(epoch, loss)
 
         lines = train_to_file(
             data,
@@ -264,7 +271,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
             args.out,
             seed=args.seed,
             epochs=args.epochs,
-            on_epoch=on_epoch,
+            on_epoch=on_epoch if args.kind != "identified" else None,
             allow_mismatch=args.allow_mismatch,
             source=str(args.data),
         )

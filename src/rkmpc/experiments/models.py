@@ -19,6 +19,7 @@ from typing import Any
 
 import rkmpc.core
 from rkmpc.core.errors import ParameterError
+from rkmpc.core.progress import EpochProgress
 from rkmpc.core.versions import RKMPC_VERSION
 from rkmpc.experiments.cache import ModelCache
 from rkmpc.experiments.results import DataRecord, ModelRecord, TrainingRecord
@@ -26,6 +27,7 @@ from rkmpc.learning.contract import contract_of
 from rkmpc.learning.data.dataset import TransitionDataset
 from rkmpc.learning.identification import identify
 from rkmpc.learning.io import load_model
+from rkmpc.learning.koopman.lifting import MLPLifting
 from rkmpc.learning.koopman.model import KoopmanModel
 from rkmpc.learning.pipeline import TrainConfig, TrainReport, train_model
 from rkmpc.learning.recipes import RECIPES, Recipe, recipe_for
@@ -65,6 +67,17 @@ def _record(report: TrainReport, kind: str, model: KoopmanModel, **extra: Any) -
     )
 
 
+def _progress(say: Callable[[str], None] | None, recipe: Recipe, epochs: int | None) -> EpochProgress | None:
+    """The progress callback of training ``recipe``'s model, or None when nobody listens."""
+    if say is None:
+        return None
+    lifting = recipe.default_model(0, epochs).lifting
+    if not isinstance(lifting, MLPLifting) or lifting.training is None:
+        return None
+    what = f"training the {recipe.kind} model of {recipe.controller}"
+    return EpochProgress(say, what, lifting.training.epochs)
+
+
 def _through_cache(
     cache: ModelCache | None, spec: Mapping[str, Any], build: Callable[[], tuple[KoopmanModel, ModelRecord]]
 ) -> tuple[KoopmanModel, ModelRecord]:
@@ -89,8 +102,12 @@ def train_excitation_model(
     seed: int,
     cache: ModelCache | None,
     epochs: int | None = None,
+    say: Callable[[str], None] | None = None,
 ) -> tuple[KoopmanModel, ModelRecord]:
-    """The model of an ``"excitation"`` recipe (KMPC) of the scenario's car, from the cache or trained."""
+    """The model of an ``"excitation"`` recipe (KMPC) of the scenario's car, from the cache or trained.
+
+    ``say``, when given, hears the training's progress (:class:`rkmpc.core.progress.EpochProgress`).
+    """
     augment = recipe.augment(seed)
     model = recipe.default_model(seed, epochs)
     spec = {
@@ -117,7 +134,13 @@ def train_excitation_model(
         data = collect_excitation(scenario, n_samples=samples, seed=seed)
         collect_time = time.perf_counter() - t0
         config = TrainConfig(kind=recipe.kind, augment=augment, model=model)
-        fitted, report = train_model(data, scenario.vehicle.wheelbase, config, vehicle=scenario.vehicle_name)
+        fitted, report = train_model(
+            data,
+            scenario.vehicle.wheelbase,
+            config,
+            vehicle=scenario.vehicle_name,
+            on_epoch=_progress(say, recipe, epochs),
+        )
         return fitted, _record(report, recipe.kind, fitted, collect_time_s=collect_time)
 
     return _through_cache(cache, spec, build)
@@ -131,8 +154,12 @@ def train_track_model(
     seed: int,
     cache: ModelCache | None,
     epochs: int | None = None,
+    say: Callable[[str], None] | None = None,
 ) -> tuple[KoopmanModel, ModelRecord]:
-    """The model of a ``"track"`` recipe (``residual``, ``paper``) of on-track data, cached or trained."""
+    """The model of a ``"track"`` recipe (``residual``, ``paper``) of on-track data, cached or trained.
+
+    ``say``, when given, hears the training's progress (:class:`rkmpc.core.progress.EpochProgress`).
+    """
     config = TrainConfig(
         kind=recipe.kind, augment=recipe.augment(seed), model=recipe.default_model(seed, epochs)
     )
@@ -149,7 +176,13 @@ def train_track_model(
     }
 
     def build() -> tuple[KoopmanModel, ModelRecord]:
-        model, report = train_model(data, scenario.vehicle.wheelbase, config, vehicle=scenario.vehicle_name)
+        model, report = train_model(
+            data,
+            scenario.vehicle.wheelbase,
+            config,
+            vehicle=scenario.vehicle_name,
+            on_epoch=_progress(say, recipe, epochs),
+        )
         return model, _record(report, recipe.kind, model)
 
     return _through_cache(cache, spec, build)
@@ -271,7 +304,7 @@ def learn_models(
                 continue
             tell(f"training the {recipe.kind} model of {name}")
             model, record = train_track_model(
-                data, scenario, recipe, seed=plan.seed, cache=cache, epochs=plan.epochs
+                data, scenario, recipe, seed=plan.seed, cache=cache, epochs=plan.epochs, say=say
             )
             records[name] = record
             options[name] = {"model": model}
@@ -285,6 +318,7 @@ def learn_models(
                 seed=plan.seed,
                 cache=cache,
                 epochs=plan.epochs,
+                say=say,
             )
             records[name] = record
             options[name] = {"model": model}
