@@ -73,7 +73,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
             def say(message: str) -> None:
                 status.update(message)
-                console.print(message)
+                console.print(message, soft_wrap=True)
 
             result = compare(config, logs=logs, on_run=on_run, say=say)
         (write_single_run if single else write_comparison)(out, result, logs, track)
