@@ -3,7 +3,7 @@ PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 
-.PHONY: ros car-loop demo test test-slow test-all lint bench bench-breakdown tracks-table learning-table study-tracks study-cars study-data faults results clean
+.PHONY: ros car-loop demo demo-quick test test-slow test-all lint bench bench-breakdown tracks-table study-tracks study-cars study-data faults results clean
 
 # PyTorch first and pinned exactly: a looser pin pulls a multi-gigabyte CUDA build.
 $(BIN)/python:
@@ -40,6 +40,11 @@ car-loop: $(VENV)/.installed $(VENV)/.installed-ros
 demo: $(VENV)/.installed
 	$(BIN)/rkmpc compare --track builtin --out runs/demo --force
 
+# The paper's point in under a minute: the LMPC, lmpc-id and rkmpc from the same two LMPC laps
+# (no KMPC model to train, no nonlinear MPC to drive).
+demo-quick: $(VENV)/.installed
+	$(BIN)/rkmpc compare --track builtin --controllers lmpc,lmpc-id,rkmpc --out runs/demo-quick --force
+
 # The fast tier (under 4 minutes on two quiet cores); `make test-slow` runs the long end-to-end tests.
 test: $(VENV)/.installed-test $(VENV)/.installed-ros
 	$(BIN)/ruff check src tests benchmarks
@@ -61,9 +66,6 @@ bench-breakdown: $(VENV)/.installed
 
 tracks-table: $(VENV)/.installed
 	$(BIN)/python benchmarks/tracks_table.py --out runs/tracks
-
-learning-table: $(VENV)/.installed
-	$(BIN)/python benchmarks/learning_table.py --out runs/learning
 
 # Every controller on the built-in and every shared track (runs in parallel on the local cores).
 study-tracks: $(VENV)/.installed
