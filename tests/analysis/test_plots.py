@@ -65,9 +65,9 @@ def _labels(ax) -> list[str]:
 
 
 def test_controller_style():
-    assert controller_style("rkmpc") == {"lw": 1.6, "color": "tab:green"}
-    assert controller_style("lmpc+delay") == {"lw": 1.0, "color": "tab:orange"}
-    assert controller_style("unknown") == {"lw": 0.9}
+    assert controller_style("rkmpc") == {"color": "#D55E00", "ls": "-", "lw": 1.8}
+    assert controller_style("lmpc+delay") == {"color": "#0072B2", "ls": "--", "lw": 1.3}
+    assert controller_style("unknown") == {"lw": 1.1, "ls": "-"}
 
 
 def test_plot_runs_axes_and_lines(track):
@@ -96,9 +96,12 @@ def test_plot_runs_axes_and_lines(track):
     np.testing.assert_array_equal(ax_wheel.get_lines()[1].get_ydata(), logs["rkmpc"]["wheel_angle"])
     map_lines = {line.get_label(): line for line in ax_map.get_lines()}
     np.testing.assert_array_equal(map_lines["lmpc"].get_xdata(), logs["lmpc"]["x"])
-    assert map_lines["rkmpc"].get_color() == "tab:green"
-    assert lat_lines["rkmpc"].get_color() == "tab:green"
-    assert lat_lines["rkmpc"].get_linewidth() == pytest.approx(1.6)
+    assert map_lines["rkmpc"].get_color() == "#D55E00"
+    assert lat_lines["rkmpc"].get_color() == "#D55E00"
+    assert lat_lines["rkmpc"].get_linewidth() == pytest.approx(1.8)
+    # One legend, for the whole figure: the controllers, the reference and the start.
+    assert [t.get_text() for t in fig.legends[0].get_texts()] == [*logs, "reference", "start"]
+    assert all(ax.get_legend() is None for ax in fig.axes)
 
 
 def test_plot_runs_marks_where_a_car_left_the_track(track):
@@ -110,7 +113,8 @@ def test_plot_runs_marks_where_a_car_left_the_track(track):
     assert len(crosses) == 1
     assert crosses[0].get_xdata()[0] == pytest.approx(logs["pp"]["x"][-1])
     assert crosses[0].get_ydata()[0] == pytest.approx(logs["pp"]["y"][-1])
-    assert crosses[0].get_color() == "tab:blue"
+    assert crosses[0].get_color() == "#7F7F7F"
+    assert "left the track" in [t.get_text() for t in fig.legends[0].get_texts()]
 
 
 def test_plot_solve_times(track):
@@ -135,7 +139,7 @@ def test_plot_solve_times(track):
     assert texts == ["2.000 / 2.00 ms", "3.000 / 5.00 ms"]
     means = [line for line in ax.get_lines() if line.get_marker() == "o" and len(line.get_xdata())]
     assert sorted(float(line.get_xdata()[0]) for line in means) == pytest.approx([2.0, 3.0])
-    legend = [t.get_text() for t in ax.get_legend().get_texts()]
+    legend = [t.get_text() for t in fig.legends[0].get_texts()]
     assert legend == ["mean", "max", "control period 50 ms"]
     assert ax.get_xlim()[1] >= 75.0  # the control period fits on the axis
 
@@ -144,7 +148,7 @@ def test_plot_solve_times_without_period(track):
     logs = {"pp": _log(track, 0.0, solve_s=np.full(40, 1e-4))}
     fig = plot_solve_times(logs)
     ax = fig.axes[0]
-    legend = [t.get_text() for t in ax.get_legend().get_texts()]
+    legend = [t.get_text() for t in fig.legends[0].get_texts()]
     assert legend == ["mean", "max"]
     assert ax.get_title() == ""
     assert ax.get_xlim()[1] == pytest.approx(0.1 * 8)

@@ -9,13 +9,14 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from rkmpc.analysis.statistics import Stats
+from rkmpc.analysis.styles import CONTROLLER_STYLE, controller_style
 
 __all__ = ["VolumeSeries", "plot_data_study"]
 
-#: Line styles of the data study, by controller (distinct where lines overlap).
+#: Line styles of the data study, by controller (distinct where lines overlap), in the project's colours.
 _STYLES = {
-    "rkmpc": {"color": "tab:green", "marker": "o", "linestyle": "-"},
-    "kmpc": {"color": "tab:red", "marker": "s", "linestyle": "--"},
+    "rkmpc": {"color": CONTROLLER_STYLE["rkmpc"].color, "marker": "o", "linestyle": "-"},
+    "kmpc": {"color": CONTROLLER_STYLE["kmpc"].color, "marker": "s", "linestyle": "--"},
 }
 
 
@@ -77,7 +78,9 @@ def plot_data_study(series: Sequence[VolumeSeries], baseline_lateral: float | No
         rate = np.asarray(s.completion_rate, dtype=float)
         ax_done.plot(x, rate, label=s.controller.upper(), fillstyle="none", markersize=8, **style)
     if baseline_lateral is not None:
-        ax_err.axhline(baseline_lateral, color="tab:orange", ls=":", lw=1.5, label="LMPC (no data)")
+        ax_err.axhline(
+            baseline_lateral, color=CONTROLLER_STYLE["lmpc"].color, ls=":", lw=1.5, label="LMPC (no data)"
+        )
     for ax in (ax_err, ax_done):
         ax.set_xscale("log")
         ax.set_xlabel("training samples (local-frame transitions)")
@@ -121,11 +124,12 @@ def plot_cars_study(
         mean = np.array([np.nan if s.mean is None else s.mean for s in stats_])
         low = np.array([np.nan if s.min is None else s.min for s in stats_])
         high = np.array([np.nan if s.max is None else s.max for s in stats_])
-        ax_lat.bar(offset, mean, width, label=name)
+        color = controller_style(name).get("color")
+        ax_lat.bar(offset, mean, width, label=name, color=color)
         # Rounding can put the mean a hair outside [min, max] when all values are equal.
         spread = [np.maximum(mean - low, 0.0), np.maximum(high - mean, 0.0)]
         ax_lat.errorbar(offset, mean, yerr=spread, fmt="none", ecolor="k", lw=0.8)
-        ax_done.bar(offset, [completion[car][name] for car in cars], width, label=name)
+        ax_done.bar(offset, [completion[car][name] for car in cars], width, label=name, color=color)
     for ax in (ax_lat, ax_done):
         ax.set_xticks(x, list(cars), rotation=30, ha="right")
     ax_lat.set_yscale("log")
