@@ -54,3 +54,27 @@ def small_paper_model(builtin_scenario, builtin_lap):
     config = TrainConfig(kind="paper", augment=AugmentConfig(ratio=0.2), model=KoopmanModel(None))
     model, _ = train_model(builtin_lap, sc.vehicle.wheelbase, config, vehicle=sc.vehicle_name)
     return model
+
+
+def figure_eight_points(n: int = 240) -> object:
+    """A figure-8 centre line at 1:10 (``x = 15 sin t, y = 6 sin 2t``, about 83 m a lap).
+
+    It crosses itself at the origin at 77 degrees, the two passes 41 m apart along the lap (a
+    bridge); ``s = 0`` (``t = pi / 4``) is 29 m before the first pass, away from the crossing.
+    """
+    import numpy as np
+
+    t = np.pi / 4 + np.linspace(0.0, 2 * np.pi, n, endpoint=False)
+    return np.column_stack([15.0 * np.sin(t), 6.0 * np.sin(2 * t)])
+
+
+@pytest.fixture(scope="session")
+def figure_eight_csv(tmp_path_factory) -> Path:
+    """The figure-8 of :func:`figure_eight_points` as a TUM centre-line file, 2.4 m wide."""
+    import numpy as np
+
+    xy = figure_eight_points()
+    rows = np.column_stack([xy, np.full(len(xy), 1.2), np.full(len(xy), 1.2)])
+    path = tmp_path_factory.mktemp("figure8") / "figure8.csv"
+    np.savetxt(path, rows, delimiter=",", header="x_m,y_m,w_tr_right_m,w_tr_left_m", fmt="%.6f")
+    return path

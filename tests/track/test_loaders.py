@@ -61,6 +61,7 @@ def test_real_tracks_load(tracks_dir: FilePath, name: str) -> None:
         assert track.centerline.speed_error() < 1e-3
         smp = track.centerline.sample(track.length / 4000)
         assert find_self_intersection(smp.xy) is None
+        assert track.crossings == ()  # an ordinary circuit: no bridge
         assert np.all(np.asarray(track.width_left(smp.s)) > 0)
         assert np.all(np.asarray(track.width_right(smp.s)) > 0)
     raw = np.loadtxt(center, delimiter=",", comments="#")
@@ -138,14 +139,25 @@ def test_non_positive_width(tmp_path: FilePath, value: float, column: str) -> No
     expect_error(write_csv(tmp_path / "width.csv", rows), ["line 12", "width must be > 0"], field=column)
 
 
-def test_self_intersecting_figure_eight(tmp_path: FilePath) -> None:
+def test_figure_eight_is_a_bridge_but_a_small_loop_is_refused(tmp_path: FilePath) -> None:
+    # A figure-8 (the passes half a lap apart) is a track over a bridge: accepted, centre and race line.
     t = np.linspace(0.0, 2 * np.pi, 80, endpoint=False)
     xy = np.column_stack([20 * np.sin(t), 10 * np.sin(2 * t)])
     rows = np.column_stack([xy, np.ones(80), np.ones(80)])
-    expect_error(write_csv(tmp_path / "eight.csv", rows), ["self-intersecting"], field="x_m")
+    track = load_centerline(write_csv(tmp_path / "eight.csv", rows))
+    assert len(track.crossings) == 1
     race = write_csv(tmp_path / "eight_race.csv", xy, header="# x_m,y_m")
-    with pytest.raises(InputFileError, match="self-intersecting"):
-        load_raceline(race)
+    assert load_raceline(race).length == pytest.approx(track.length, rel=1e-3)
+    # A circle with a small loop in it (a line folding back on itself) is still refused.
+    th = np.linspace(0.0, 2 * np.pi, 80, endpoint=False)
+    loop = np.linspace(0.0, 2 * np.pi, 12, endpoint=False)
+    circle = np.column_stack([20 * np.cos(th), 20 * np.sin(th)])
+    small = np.column_stack([22 - 2 * np.cos(loop), 2 * np.sin(loop) - 0.5])
+    folded = np.vstack([circle[:1], small, circle[1:]])
+    rows = np.column_stack([folded, np.ones(len(folded)), np.ones(len(folded))])
+    expect_error(write_csv(tmp_path / "loop.csv", rows), ["self-intersecting", "folds back"], field="x_m")
+    with pytest.raises(InputFileError, match="folds back"):
+        load_raceline(write_csv(tmp_path / "loop_race.csv", folded, header="# x_m,y_m"))
 
 
 @pytest.mark.parametrize("shape", ["c_shape", "spiral"])

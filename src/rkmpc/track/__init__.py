@@ -2,6 +2,7 @@
 
 from rkmpc.core.angles import wrap_angle
 from rkmpc.track.builtin import BUILTIN_DESCRIPTIONS, builtin_track, list_builtin_tracks
+from rkmpc.track.crossings import Crossing
 from rkmpc.track.loaders import find_self_intersection, load_centerline, load_raceline, load_track
 from rkmpc.track.path import Path, PathSamples, Projection
 from rkmpc.track.reference import Reference, ReferenceHorizon
@@ -10,6 +11,7 @@ from rkmpc.track.track import Track
 
 __all__ = [
     "BUILTIN_DESCRIPTIONS",
+    "Crossing",
     "Path",
     "PathSamples",
     "Projection",

@@ -20,7 +20,16 @@ naming the file, the column where relevant, and the problem):
   not exceed ``CLOSING_GAP_FACTOR`` (4) times the median spacing of the other
   points *and* twice the largest other spacing.  A gap failing both tests is
   taken as an open line (e.g. a C shape);
-* the closed polyline must not cross itself.
+* the closed polyline may cross itself only at a bridge (the track passing over itself, a
+  figure-8): the two passes far apart along the lap and crossing at a real angle (the rule is
+  :mod:`rkmpc.track.crossings`); a line that folds back on itself locally (a small loop, a
+  zig-zag) is refused, naming the lines of the two crossing segments;
+* the smoothed line (the periodic spline through the points, sampled about every 2 cm) must
+  cross itself nowhere but at the polyline's bridges: the spline of a sharp hairpin between
+  sparse points can loop over itself where the points do not; the error names the place (its
+  arc length, the nearest lines) and says it is the smoothed line.
+
+The crossings found are recorded in :attr:`rkmpc.track.track.Track.crossings`.
 """
 
 from __future__ import annotations
@@ -29,10 +38,16 @@ import math
 from pathlib import Path as FilePath
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
-from scipy.spatial import cKDTree
+from numpy.typing import NDArray
 
 from rkmpc.core.errors import InputFileError, ParameterError
+from rkmpc.track.crossings import (
+    Crossing,
+    bridge_problem,
+    find_self_intersection,
+    path_crossings,
+    segment_crossings,
+)
 from rkmpc.track.path import Path
 from rkmpc.track.points import dedupe_mask
 from rkmpc.track.track import Track, track_length_problem
@@ -142,82 +157,6 @@ def _read_columns(path: FilePath, required: tuple[str, ...]) -> dict[str, FloatA
     return out
 
 
-def find_self_intersection(xy: ArrayLike) -> tuple[int, int] | None:
-    """Find two crossing segments of a closed polyline.
-
-    Segment ``i`` joins point ``i`` to point ``i + 1`` (the last one joins the
-    last point to the first).  Candidate pairs come from a KD-tree on segment
-    midpoints (two segments can only meet if their midpoints are closer than
-    the longest segment), and are then tested with vectorised orientation
-    tests.  Adjacent segments count as crossing only if they fold back onto
-    each other.
-
-    Parameters
-    ----------
-    xy : array_like, shape (n, 2)
-        Points of the closed polyline (m), first point not repeated.
-
-    Returns
-    -------
-    tuple of int or None
-        Indices ``(i, j)``, ``i < j``, of one pair of intersecting segments, or
-        None if the polyline is simple.
-    """
-    p = np.asarray(xy, dtype=float)
-    n = p.shape[0]
-    if n < 3:
-        return None
-    a = p
-    b = np.roll(p, -1, axis=0)
-    seg = b - a
-    seg_len = np.hypot(seg[:, 0], seg[:, 1])
-
-    # Adjacent segments folding back onto each other (a 180-degree reversal).
-    nxt = np.roll(seg, -1, axis=0)
-    cross_adj = seg[:, 0] * nxt[:, 1] - seg[:, 1] * nxt[:, 0]
-    dot_adj = np.einsum("ij,ij->i", seg, nxt)
-    norm = seg_len * np.roll(seg_len, -1)
-    fold = (dot_adj < 0.0) & (np.abs(cross_adj) <= 1e-12 * np.maximum(norm, 1e-300))
-    if np.any(fold):
-        i = int(np.flatnonzero(fold)[0])
-        j = (i + 1) % n
-        return (min(i, j), max(i, j))
-
-    mid = 0.5 * (a + b)
-    radius = float(seg_len.max()) * (1.0 + 1e-9)
-    pairs = cKDTree(mid).query_pairs(radius, output_type="ndarray")
-    if pairs.size == 0:
-        return None
-    i, j = pairs[:, 0], pairs[:, 1]
-    gap = np.abs(i - j)
-    keep = (gap != 1) & (gap != n - 1)
-    i, j = i[keep], j[keep]
-    if i.size == 0:
-        return None
-
-    def orient(o: FloatArray, d: FloatArray, q: FloatArray) -> FloatArray:
-        return (d[:, 0] - o[:, 0]) * (q[:, 1] - o[:, 1]) - (d[:, 1] - o[:, 1]) * (q[:, 0] - o[:, 0])
-
-    a1, b1, a2, b2 = a[i], b[i], a[j], b[j]
-    o1 = orient(a1, b1, a2)
-    o2 = orient(a1, b1, b2)
-    o3 = orient(a2, b2, a1)
-    o4 = orient(a2, b2, b1)
-    proper = (o1 * o2 <= 0.0) & (o3 * o4 <= 0.0)
-    collinear = (o1 == 0.0) & (o2 == 0.0)
-    if np.any(collinear):
-        # Collinear pairs: they meet only if their bounding boxes overlap.
-        lo1, hi1 = np.minimum(a1, b1), np.maximum(a1, b1)
-        lo2, hi2 = np.minimum(a2, b2), np.maximum(a2, b2)
-        overlap = np.all((lo1 <= hi2) & (lo2 <= hi1), axis=1)
-        proper = np.where(collinear, overlap, proper)
-    hits = np.flatnonzero(proper)
-    if hits.size == 0:
-        return None
-    k = int(hits[0])
-    return (int(min(i[k], j[k])), int(max(i[k], j[k])))
-
-
 def _validate_loop(
     path: FilePath, cols: dict[str, FloatArray], width_cols: tuple[str, ...]
 ) -> NDArray[np.bool_]:
@@ -248,18 +187,76 @@ def _validate_loop(
             f"{CLOSING_GAP_FACTOR:g} x the median spacing ({median:.3g} m); expected a closed loop",
             field="x_m,y_m",
         )
-    hit = find_self_intersection(pts)
-    if hit is not None:
-        rows = np.flatnonzero(keep)
-        li = int(lines[rows[hit[0]]])
-        lj = int(lines[rows[hit[1]]])
+    rows = np.flatnonzero(keep)
+    widths = sum((cols[name][keep] for name in width_cols), np.zeros(pts.shape[0]))
+    closed = np.vstack([pts, pts[:1]])
+    s_pts = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(closed, axis=0).T))])
+    for hit in segment_crossings(pts):
+        s1 = s_pts[hit.i] + hit.t_i * (s_pts[hit.i + 1] - s_pts[hit.i])
+        s2 = s_pts[hit.j] + hit.t_j * (s_pts[hit.j + 1] - s_pts[hit.j])
+        length = float(s_pts[-1])
+        separation = min(abs(s2 - s1), length - abs(s2 - s1))
+        width = float(max(widths[hit.i], widths[hit.j]))
+        problem = bridge_problem(separation, math.asin(hit.sin_angle), length, width)
+        if problem is not None:
+            li = int(lines[rows[hit.i]])
+            lj = int(lines[rows[hit.j]])
+            raise InputFileError(
+                path,
+                f"line is self-intersecting: the segment starting at line {li} crosses the one "
+                f"starting at line {lj}, and it is no bridge: {problem}",
+                field="x_m,y_m",
+            )
+    return keep
+
+
+def _check_smoothed(
+    file: FilePath, line: Path, pts: FloatArray, file_lines: FloatArray, widths: FloatArray | None
+) -> tuple[Crossing, ...]:
+    """Check the smoothed line (the spline through ``pts``, sampled densely) for crossings.
+
+    Every crossing of the spline must be one of the polyline's (already checked to be bridges)
+    and a bridge itself (with the projection window of ``line``); the spline of a sharp bend
+    between sparse points can cross itself where the points do not.  Returns the crossings.
+    """
+    length = line.length
+    knots = np.append(line.knot_s, length)
+    width_at = (
+        (lambda s: 0.0)
+        if widths is None
+        else (lambda s: float(np.interp(s, knots, np.append(widths, widths[0]))))
+    )
+    poly: list[tuple[float, float]] = []
+    for hit in segment_crossings(pts):
+        s1 = knots[hit.i] + hit.t_i * (knots[hit.i + 1] - knots[hit.i])
+        s2 = knots[hit.j] + hit.t_j * (knots[hit.j + 1] - knots[hit.j])
+        poly.append((float(s1 % length), float(s2 % length)))
+    tol = 3.0 * float(np.max(np.diff(knots)))
+
+    def near(a: float, b: float) -> bool:
+        d = abs(a - b) % length
+        return min(d, length - d) < tol
+
+    found = path_crossings(line)
+    for c in found:
+        matched = any(
+            (near(c.s_first, a) and near(c.s_second, b)) or (near(c.s_first, b) and near(c.s_second, a))
+            for a, b in poly
+        )
+        width = max(width_at(c.s_first), width_at(c.s_second))
+        problem = bridge_problem(c.separation, c.angle, length, width, line.default_window)
+        if matched and problem is None:
+            continue
+        rows = [int(file_lines[int(np.argmin(np.abs(line.knot_s - s)))]) for s in (c.s_first, c.s_second)]
+        why = "its points do not cross there" if problem is None else problem
         raise InputFileError(
-            path,
-            f"line is self-intersecting: the segment starting at line {li} crosses the one "
-            f"starting at line {lj}",
+            file,
+            f"the smoothed line (the spline through the points) crosses itself at ({c.x:.3g}, {c.y:.3g}) m, "
+            f"at s = {c.s_first:.4g} m and s = {c.s_second:.4g} m along the lap (near lines {rows[0]} "
+            f"and {rows[1]}), and {why}: a sharp bend between too few points? add points there",
             field="x_m,y_m",
         )
-    return keep
+    return tuple(found)
 
 
 def load_centerline(path: str | FilePath, *, scale: float = 1.0, name: str | None = None) -> Track:
@@ -297,6 +294,7 @@ def load_centerline(path: str | FilePath, *, scale: float = 1.0, name: str | Non
     track_name = file.stem if name is None else name
     centerline = Path.from_points(xy, name=track_name, source=str(file))
     _check_length(file, centerline)
+    crossings = _check_smoothed(file, centerline, xy, cols["_line"][keep], wr + wl)
     # Resample the widths onto a uniform arc-length grid (same number of samples as points).
     length = centerline.length
     s_pts = np.append(centerline.knot_s, length)
@@ -304,7 +302,9 @@ def load_centerline(path: str | FilePath, *, scale: float = 1.0, name: str | Non
     s_grid = np.arange(m) * (length / m)
     wr_grid = np.interp(s_grid, s_pts, np.append(wr, wr[0]))
     wl_grid = np.interp(s_grid, s_pts, np.append(wl, wl[0]))
-    return Track(track_name, centerline, wr_grid, wl_grid, scale=factor, source=str(file))
+    return Track(
+        track_name, centerline, wr_grid, wl_grid, scale=factor, source=str(file), crossings=crossings
+    )
 
 
 def load_raceline(path: str | FilePath, *, scale: float = 1.0, name: str | None = None) -> Path:
@@ -337,6 +337,7 @@ def load_raceline(path: str | FilePath, *, scale: float = 1.0, name: str | None 
     xy = factor * np.column_stack([cols["x_m"][keep], cols["y_m"][keep]])
     raceline = Path.from_points(xy, name=file.stem if name is None else name, source=str(file))
     _check_length(file, raceline)
+    _check_smoothed(file, raceline, xy, cols["_line"][keep], None)
     return raceline
 
 

@@ -315,7 +315,10 @@ class PathProjector:
         searched, so the result cannot jump to a neighbouring part of the track;
         if the nearest point lies on the edge of the window, the window is moved
         along the path (a few times at most) so the search follows the path
-        continuously.  The window wraps across ``s = 0``.
+        continuously.  The window wraps across ``s = 0``.  Where the path crosses itself (a
+        bridge, :mod:`rkmpc.track.crossings`) the hinted search therefore stays on the pass of
+        the hint (a bridge's passes are more than twice the default window apart); an unhinted
+        projection of a point within a track width of the crossing may land on either pass.
 
         Parameters
         ----------

@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from rkmpc.core.errors import ParameterError
+from rkmpc.track.crossings import Crossing, bridge_problem, path_crossings
 from rkmpc.track.path import Path
 
 __all__ = ["MAX_TRACK_LENGTH", "Track", "WidthSpec", "track_length_problem"]
@@ -103,11 +104,25 @@ class Track:
         Scale factor that was applied to the source data (metadata only).
     source : str, optional
         Where the data came from (file name).
+    crossings : sequence of Crossing, optional
+        The centre line's crossings, when the caller has found and checked them already (the
+        loaders do); found here otherwise.
+
+    Attributes
+    ----------
+    crossings : tuple of Crossing
+        Where the centre line crosses itself: bridges, the track passing over itself (empty for
+        an ordinary circuit).  Each gives the arc lengths of the two passes; see
+        :mod:`rkmpc.track.crossings` for the rule that tells a bridge from a fold.  Every
+        hinted projection (the off-track check, the controllers, the lap counter) stays on the
+        pass the car is on; only a first, unhinted projection of a point within a track width
+        of a crossing may pick either pass, so a run should not start on a bridge.
 
     Raises
     ------
     ParameterError
-        If a width is not finite and positive, or a line is longer than :data:`MAX_TRACK_LENGTH`.
+        If a width is not finite and positive, a line is longer than :data:`MAX_TRACK_LENGTH`,
+        or the centre line crosses itself anywhere but at a bridge (it folds back on itself).
     """
 
     def __init__(
@@ -120,6 +135,7 @@ class Track:
         raceline: Path | None = None,
         scale: float = 1.0,
         source: str | None = None,
+        crossings: Sequence[Crossing] | None = None,
     ) -> None:
         if not (math.isfinite(scale) and scale > 0.0):
             raise ParameterError(f"Track: scale must be finite and > 0, got {scale!r}")
@@ -135,8 +151,23 @@ class Track:
         self._width_specs = (width_right, width_left)
         self._wr = _PeriodicWidth(width_right, centerline.length, "right")
         self._wl = _PeriodicWidth(width_left, centerline.length, "left")
+        self.crossings = tuple(self._find_crossings() if crossings is None else crossings)
         if raceline is not None:
             self._check_raceline(raceline)
+
+    def _find_crossings(self) -> list[Crossing]:
+        """The centre line's crossings; ParameterError for one that is no bridge."""
+        line = self.centerline
+        found = path_crossings(line)
+        for c in found:
+            width = max(float(self._wl(s)) + float(self._wr(s)) for s in (c.s_first, c.s_second))
+            problem = bridge_problem(c.separation, c.angle, line.length, width, line.default_window)
+            if problem is not None:
+                raise ParameterError(
+                    f"Track {self.name!r}: the centre line crosses itself at ({c.x:.3g}, {c.y:.3g}) m, "
+                    f"s = {c.s_first:.4g} m and s = {c.s_second:.4g} m, and it is no bridge: {problem}"
+                )
+        return found
 
     def _check_raceline(self, raceline: Path, samples: int = 400) -> None:
         """Refuse a race line that leaves the track by more than the track's half-width.
@@ -186,6 +217,7 @@ class Track:
             raceline=raceline,
             scale=self.scale,
             source=self.source,
+            crossings=self.crossings,
         )
 
     def boundary_offsets(self, x: float, y: float, s_hint: float | None = None) -> tuple[float, float, float]:
