@@ -204,10 +204,17 @@ def read_npz(path: Path, *, max_bytes: int = MAX_NPZ_BYTES) -> dict[str, np.ndar
         raise InputFileError(path, problem) from None
     if not isinstance(loaded, np.lib.npyio.NpzFile):
         raise InputFileError(path, "not an .npz archive (a single .npy array)")
+    key = ""
     try:
         with loaded:
-            return {key: loaded[key] for key in loaded.files}
+            arrays = {}
+            for key in loaded.files:
+                arrays[key] = loaded[key]
+            return arrays
     except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile, zlib.error) as exc:
+        if isinstance(exc, ValueError) and "allow_pickle" in str(exc):
+            problem = "holds pickled Python objects, which rkmpc never loads: not a file rkmpc wrote?"
+            raise InputFileError(path, problem, field=key.removesuffix(".npy") or None) from None
         problem = f"damaged .npz archive, corrupted or truncated? ({type(exc).__name__}: {exc})"
         raise InputFileError(path, problem) from None
 
