@@ -232,7 +232,6 @@ HAIRPIN = [(0, 0), (4, 0), (8, 0), (8.6, 0), (8.6, 0.3), (8, 0.3), (4, 0.3), (0,
     LEARNING,
     "a centre line whose spline crosses itself though its polyline does not",
     CLEAR_ERROR,
-    xfail="issue 13: handled on branch tracks8",
 )
 def spline_crossing(probe: Probe) -> Evidence:
     from rkmpc.track.loaders import find_self_intersection, load_centerline
