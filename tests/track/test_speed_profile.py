@@ -80,3 +80,19 @@ def test_curvature_smoothing(path: Path) -> None:
     assert smooth.lap_time > 0.9 * raw.lap_time
     with pytest.raises(ParameterError):
         speed_profile(path, limits, curvature_smoothing=-1.0)
+
+
+def test_limits_at_another_pace_scale_braking_and_traction_with_the_lateral_limit():
+    base = SpeedLimits(
+        lateral_accel=4.0, brake_decel=2.5, accel=2.0, max_speed=3.5, min_speed=0.5, curvature_rate=1.0
+    )
+    race = base.at_pace(lateral_accel=6.0, max_speed=5.0)
+    assert (race.lateral_accel, race.max_speed) == (6.0, 5.0)
+    assert race.brake_decel == pytest.approx(3.75) and race.accel == pytest.approx(3.0)
+    assert (race.min_speed, race.curvature_rate) == (0.5, 1.0)
+    assert base.at_pace() == base
+    assert base.at_pace(max_speed=4.0).brake_decel == base.brake_decel
+    with pytest.raises(ParameterError, match="lateral_accel"):
+        base.at_pace(lateral_accel=-1.0)
+    with pytest.raises(ParameterError, match="min_speed"):
+        base.at_pace(max_speed=0.4)

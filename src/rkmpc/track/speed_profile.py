@@ -21,7 +21,7 @@ across the start line.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -87,6 +87,23 @@ class SpeedLimits:
             raise ParameterError(
                 f"SpeedLimits.min_speed ({self.min_speed}) must be below max_speed ({self.max_speed})"
             )
+
+    def at_pace(self, lateral_accel: float | None = None, max_speed: float | None = None) -> SpeedLimits:
+        """These limits at another pace: a lateral-acceleration limit (m/s^2) and a top speed (m/s).
+
+        Braking and traction scale with the lateral-acceleration limit (the same tyres asked
+        for more grip in every direction); the speed floor and the curvature-rate limit (a
+        property of the steering servo) stay. Either argument None keeps the current value.
+        """
+        lateral = self.lateral_accel if lateral_accel is None else lateral_accel
+        ratio = lateral / self.lateral_accel if math.isfinite(lateral) and lateral > 0 else math.nan
+        return replace(
+            self,
+            lateral_accel=lateral,
+            brake_decel=self.brake_decel * ratio,
+            accel=self.accel * ratio,
+            max_speed=self.max_speed if max_speed is None else max_speed,
+        )
 
 
 class SpeedProfile:
