@@ -27,6 +27,7 @@ from rkmpc.sim.faults import DEFAULT_NOISE, get_fault
 from rkmpc.sim.log import StepLog
 from rkmpc.sim.run import RunSpec, run_record
 from rkmpc.sim.scenario import Scenario, load_scenario, vehicle_preset
+from rkmpc.track.speed_profile import SpeedLimits
 from rkmpc.vehicle.zoo import get_car
 
 __all__ = [
@@ -105,6 +106,9 @@ class CompareConfig:
     allow_mismatch : bool
         Drive with model files made with another car, period or track scale than the track's
         scenario (refused otherwise); the warnings go to the result and to the runs' logs.
+    limits : SpeedLimits or None
+        Speed-profile limits (the pace; :meth:`rkmpc.track.speed_profile.SpeedLimits.at_pace`);
+        None: the vehicle preset's.
     """
 
     track: str
@@ -127,8 +131,11 @@ class CompareConfig:
     epochs: int | None = None
     car: str | None = None
     allow_mismatch: bool = False
+    limits: SpeedLimits | None = None
 
     def __post_init__(self) -> None:
+        if self.limits is not None and not isinstance(self.limits, SpeedLimits):
+            raise ParameterError(f"CompareConfig.limits must be SpeedLimits or None, got {self.limits!r}")
         for name, minimum in (("laps", 1), ("seed", 0), ("run_laps", 1), ("kmpc_samples", 1000)):
             value = getattr(self, name)
             if not is_integer(value, minimum):
@@ -174,7 +181,12 @@ class CompareConfig:
     def scenario(self) -> Scenario:
         """The track, car and reference of the comparison."""
         return load_scenario(
-            self.track, raceline=self.raceline, scale=self.scale, vehicle=self.vehicle, car=self.car
+            self.track,
+            raceline=self.raceline,
+            scale=self.scale,
+            vehicle=self.vehicle,
+            car=self.car,
+            limits=self.limits,
         )
 
 
