@@ -84,6 +84,12 @@ class TrackingCost:
         Largest speed above the reference speed profile the MPC may command
         (m/s). Without it the kinematic model, in which yaw rate grows with
         speed, accelerates into corners whenever the steering saturates.
+    speed_lead : float
+        Look-ahead of the reference speed (s): the speed asked for at each step of the horizon
+        is the profile's this much later. A car whose speed loop lags the command by a time
+        constant ``tau`` reaches a braking point about ``a * tau`` too fast (``a`` the
+        deceleration) unless told ``tau`` early; 0 (default) asks for the profile as it is.
+        Rounded to whole periods.
     speed_floor : SpeedFloor
         Lowest speed the MPC plans and commands, relative to the reference speed
         (default: half of it, see :class:`~rkmpc.control.guard.SpeedFloor`). Every MPC,
@@ -101,6 +107,7 @@ class TrackingCost:
     steer_rate_weight: float = 0.1
     terminal_factor: float = 1.0
     speed_margin: float = 0.0
+    speed_lead: float = 0.0
     speed_floor: SpeedFloor = field(default_factory=SpeedFloor)
 
     def __post_init__(self) -> None:
@@ -110,7 +117,9 @@ class TrackingCost:
         if not is_integer(self.horizon, 2):
             raise ParameterError(f"{name}.horizon must be an integer >= 2, got {self.horizon!r}")
         require_positive(self, "dt")
-        require_nonnegative(self, *MPC_WEIGHTS, "speed_margin")
+        require_nonnegative(self, *MPC_WEIGHTS, "speed_margin", "speed_lead")
+        if not self.speed_lead <= 10.0:
+            raise ParameterError(f"{name}.speed_lead must be at most 10 s, got {self.speed_lead!r}")
         if self.speed_weight + self.speed_rate_weight <= 0 or self.steer_weight + self.steer_rate_weight <= 0:
             raise ParameterError(f"{name}: each input needs a positive weight or rate weight")
 
@@ -199,8 +208,12 @@ class TrackingController(Controller):
     def _track(self, observation: Observation) -> tuple[ReferenceHorizon, np.ndarray]:
         """Project the car, take the reference horizon and its inputs; set the previous command once."""
         cfg = self.config
-        ref = self.reference.horizon(self._projected().s, cfg.horizon, cfg.dt)
+        s = self._projected().s
+        ref = self.reference.horizon(s, cfg.horizon, cfg.dt)
         u_ref = self._reference_inputs(ref)
+        lead = round(cfg.speed_lead / cfg.dt)
+        if lead > 0:  # the speed the profile asks for ``speed_lead`` later (s)
+            u_ref[:, 0] = self.reference.horizon(s, cfg.horizon + lead, cfg.dt).v[lead : lead + cfg.horizon]
         self.reference_speed = float(u_ref[0, 0])
         if self._guard.previous is None:
             self._guard.previous = self._first_previous_input(observation, u_ref)
