@@ -43,7 +43,7 @@ def _add_scenario_args(parser: argparse.ArgumentParser, out_help: str = "output 
         "--seed",
         type=at_least(0),
         default=None,
-        help="seed of every random choice (default: the file's, else 0)",
+        help="seed of every random choice; else the --config file's (default: 0)",
     )
     parser.add_argument("--noise", action="store_true", help="add measurement noise to the observations")
     parser.add_argument("--out", required=True, type=Path, help=out_help)
@@ -61,13 +61,13 @@ def _add_learning_args(parser: argparse.ArgumentParser) -> None:
         "--data-laps",
         type=at_least(1),
         default=None,
-        help="LMPC laps of data the learned controllers learn from (default: the file's, else 2)",
+        help="LMPC laps of data the learned controllers learn from; else the --config file's (default: 2)",
     )
     parser.add_argument(
         "--kmpc-samples",
         type=at_least(1000),
         default=None,
-        help="random-excitation samples of the KMPC model (default: the file's, else 50000)",
+        help="random-excitation samples of the KMPC model; else the --config file's (default: 50000)",
     )
     parser.add_argument(
         "--fault",
@@ -80,7 +80,7 @@ def _add_learning_args(parser: argparse.ArgumentParser) -> None:
         "--epochs",
         type=at_least(1),
         default=None,
-        help="training epochs of the learned models (default: the file's, else the recipes')",
+        help="training epochs of the learned models; else the --config file's, else the recipes'",
     )
     _add_mismatch_arg(parser, "drive with --model files made with another car, period or track scale")
     add_force_arg(parser)
@@ -175,9 +175,9 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument("--dt", type=float, default=0.05, help="control period the model is for (s)")
     _add_mismatch_arg(train, "train on data recorded with another car or period")
     train.add_argument(
-        "--epochs", type=at_least(1), default=None, help="(default: the file's, else the recipe's)"
+        "--epochs", type=at_least(1), default=None, help="else the --config file's, else the recipe's"
     )
-    train.add_argument("--seed", type=at_least(0), default=None, help="(default: the file's, else 0)")
+    train.add_argument("--seed", type=at_least(0), default=None, help="else the --config file's (default: 0)")
     train.add_argument("--out", required=True, type=Path, help="model file")
     sub.add_parser("tracks", help="list the built-in tracks")
     add_study_parser(sub)

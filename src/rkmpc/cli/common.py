@@ -101,7 +101,10 @@ def add_config_args(parser: argparse.ArgumentParser, *, pace: bool = True) -> No
         help="car file: vehicle, plant, speed limits, controllers, training (options given here win)",
     )
     parser.add_argument(
-        "--vehicle", default=None, choices=VEHICLES, help="vehicle preset (default: the file's, else f1tenth)"
+        "--vehicle",
+        default=None,
+        choices=VEHICLES,
+        help="vehicle preset; else the --config file's (default: f1tenth)",
     )
     if pace:
         parser.add_argument(

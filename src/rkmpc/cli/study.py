@@ -40,7 +40,7 @@ def add_study_parser(sub: Any) -> None:
     tracks.add_argument("--scale", type=float, default=None)
     add_config_args(tracks)
     tracks.add_argument(
-        "--kmpc-samples", type=at_least(1000), default=None, help="(default: the file's, else 50000)"
+        "--kmpc-samples", type=at_least(1000), default=None, help="else the --config file's (default: 50000)"
     )
     tracks.add_argument("--fault", default=None, help="also drive every controller with this fault")
     tracks.add_argument(
@@ -55,7 +55,7 @@ def add_study_parser(sub: Any) -> None:
     cars.add_argument("--seeds", default="0")
     add_config_args(cars)
     cars.add_argument(
-        "--kmpc-samples", type=at_least(1000), default=None, help="(default: the file's, else 50000)"
+        "--kmpc-samples", type=at_least(1000), default=None, help="else the --config file's (default: 50000)"
     )
     cars.add_argument(
         "--epochs", type=at_least(1), default=None, help="training epochs of the learned models"
