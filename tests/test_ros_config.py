@@ -56,7 +56,7 @@ def test_the_recorded_bag_is_relative_to_the_file_and_its_storage_checked(tmp_pa
     assert config.record.bag == str(tmp_path / "bags/run-{time}") and config.record.storage == "sqlite3"
     with pytest.raises(InputFileError, match="storage must be one of") as info:
         load_node_config(write(tmp_path, "record: {storage: ros1}\n"))
-    assert info.value.field == "record"
+    assert info.value.field == "record.storage"
 
 
 def test_built_in_track_names_stay_names(tmp_path):
@@ -73,10 +73,10 @@ def test_built_in_track_names_stay_names(tmp_path):
         ("safety: {latch: 1}\n", {}, "safety.latch", "true or false"),
         ("topics: {drive: 3}\n", {}, "topics.drive", "string"),
         ("safety: 3\n", {}, "safety", "mapping"),
-        ("safety: {odometry_timeout: -1}\n", {}, "safety", "odometry_timeout must be finite and > 0"),
-        ("trigger: sometimes\n", {}, None, "trigger must be one of"),
-        ("odometry: {pose: front_axle}\n", {}, "odometry", "pose must be one of"),
-        ("latency: {actuation: .nan}\n", {}, "latency", "actuation must be finite"),
+        ("safety: {odometry_timeout: -1}\n", {}, "safety.odometry_timeout", "must be finite and > 0"),
+        ("trigger: sometimes\n", {}, "trigger", "trigger must be one of"),
+        ("odometry: {pose: front_axle}\n", {}, "odometry.pose", "pose must be one of"),
+        ("latency: {actuation: .nan}\n", {}, "latency.actuation", "actuation must be finite"),
     ],
 )
 def test_errors_name_the_file_and_the_key(tmp_path, text, overrides, key, words):

@@ -12,12 +12,13 @@ import contextlib
 import sys
 import warnings
 from collections.abc import Callable, Sequence
+from dataclasses import replace
 from importlib.metadata import version as package_version
 from pathlib import Path
 from typing import Any
 
 from rkmpc.cli.bags import add_bag_args, cmd_collect_from_bag
-from rkmpc.cli.common import CACHE_HELP, VEHICLES, add_force_arg, at_least
+from rkmpc.cli.common import CACHE_HELP, add_config_args, add_force_arg, at_least, car_config
 from rkmpc.cli.compare import cmd_compare
 from rkmpc.cli.ros import ROS_COMMANDS, add_ros_parsers
 from rkmpc.cli.study import add_study_parser, cmd_study
@@ -33,12 +34,17 @@ def _add_scenario_args(parser: argparse.ArgumentParser, out_help: str = "output 
     parser.add_argument(
         "--scale", type=float, default=None, help="scale of track files (default: 0.1 for f1tenth)"
     )
-    parser.add_argument("--vehicle", default="f1tenth", choices=VEHICLES)
+    add_config_args(parser)
     parser.add_argument(
         "--car", default=None, help="drive a car of the zoo (gym, overshoot, ..., random-<seed>) instead"
     )
     parser.add_argument("--laps", type=at_least(1), default=1)
-    parser.add_argument("--seed", type=at_least(0), default=0, help="seed of every random choice (noise)")
+    parser.add_argument(
+        "--seed",
+        type=at_least(0),
+        default=None,
+        help="seed of every random choice; else the --config file's (default: 0)",
+    )
     parser.add_argument("--noise", action="store_true", help="add measurement noise to the observations")
     parser.add_argument("--out", required=True, type=Path, help=out_help)
     parser.add_argument(
@@ -52,10 +58,16 @@ def _add_scenario_args(parser: argparse.ArgumentParser, out_help: str = "output 
 
 def _add_learning_args(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
-        "--data-laps", type=int, default=2, help="LMPC laps of data the learned controllers learn from"
+        "--data-laps",
+        type=at_least(1),
+        default=None,
+        help="LMPC laps of data the learned controllers learn from; else the --config file's (default: 2)",
     )
     parser.add_argument(
-        "--kmpc-samples", type=int, default=50_000, help="random-excitation samples of the KMPC model"
+        "--kmpc-samples",
+        type=at_least(1000),
+        default=None,
+        help="random-excitation samples of the KMPC model; else the --config file's (default: 50000)",
     )
     parser.add_argument(
         "--fault",
@@ -65,7 +77,10 @@ def _add_learning_args(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--cache-dir", type=Path, default=None, help=CACHE_HELP)
     parser.add_argument("--no-cache", action="store_true", help="train every model afresh, store nothing")
     parser.add_argument(
-        "--epochs", type=at_least(1), default=None, help="training epochs of the learned models"
+        "--epochs",
+        type=at_least(1),
+        default=None,
+        help="training epochs of the learned models; else the --config file's, else the recipes'",
     )
     _add_mismatch_arg(parser, "drive with --model files made with another car, period or track scale")
     add_force_arg(parser)
@@ -156,11 +171,13 @@ def build_parser() -> argparse.ArgumentParser:
     train = sub.add_parser("train", help="train a model from a data set")
     train.add_argument("--data", required=True, type=Path)
     train.add_argument("--kind", required=True, choices=model_kinds())
-    train.add_argument("--vehicle", default="f1tenth", choices=VEHICLES, help="the car the model is for")
+    add_config_args(train, pace=False)  # the car the model is for
     train.add_argument("--dt", type=float, default=0.05, help="control period the model is for (s)")
     _add_mismatch_arg(train, "train on data recorded with another car or period")
-    train.add_argument("--epochs", type=at_least(1), default=None)
-    train.add_argument("--seed", type=at_least(0), default=0)
+    train.add_argument(
+        "--epochs", type=at_least(1), default=None, help="else the --config file's, else the recipe's"
+    )
+    train.add_argument("--seed", type=at_least(0), default=None, help="else the --config file's (default: 0)")
     train.add_argument("--out", required=True, type=Path, help="model file")
     sub.add_parser("tracks", help="list the built-in tracks")
     add_study_parser(sub)
@@ -222,14 +239,22 @@ def _cmd_collect(args: argparse.Namespace) -> int:
         log = StepLog.from_csv(args.from_log)
         data = TransitionDataset.from_log(log, metadata={**log.metadata, "source": str(args.from_log)})
     else:
+        car = car_config(args)
         scenario = load_scenario(
-            args.track, raceline=args.raceline, scale=args.scale, vehicle=args.vehicle, car=args.car
+            args.track,
+            raceline=args.raceline,
+            scale=args.scale,
+            vehicle=car.preset,
+            car=car.car,
+            preset=car.vehicle_preset(),
         )
+        seed = car.training.seed
         if args.excitation:
-            data = collect_excitation(scenario, n_samples=args.excitation, seed=args.seed)
+            data = collect_excitation(scenario, n_samples=args.excitation, seed=seed)
         else:
             noise = DEFAULT_NOISE if args.noise else None
-            data = collect(scenario, controller=args.controller, laps=args.laps, seed=args.seed, noise=noise)
+            data = collect(scenario, controller=args.controller, laps=args.laps, seed=seed, noise=noise)
+        data = replace(data, metadata={**data.metadata, "car_config": car.to_json()})
     data.save(args.out)
     print(f"{len(data)} transitions -> {args.out}")
     return 0
@@ -244,14 +269,15 @@ def _cmd_train(args: argparse.Namespace) -> int:
     from rkmpc.experiments.training import train_to_file
     from rkmpc.learning.contract import Provenance
     from rkmpc.learning.data.dataset import TransitionDataset
-    from rkmpc.sim.scenario import vehicle_preset
 
     check_output_file(args.out)
     data = TransitionDataset.load(args.data)
-    vehicle = vehicle_preset(args.vehicle).params()
-    made_for = Provenance(vehicle=args.vehicle, dt=args.dt, wheelbase=vehicle.wheelbase)
+    car = car_config(args)
+    vehicle = car.vehicle
+    made_for = Provenance(vehicle=car.preset, dt=args.dt, wheelbase=vehicle.wheelbase)
     console = Console(stderr=True)
-    total = args.epochs or 100
+    epochs = car.training.epochs
+    total = epochs or 100
     with Progress(console=console, transient=True, disable=not console.is_terminal) as progress:
         task = progress.add_task(f"training {args.kind}", total=total)
         # A bar (with the time left) on a terminal; about ten lines with an estimate in a log.
@@ -269,8 +295,8 @@ def _cmd_train(args: argparse.Namespace) -> int:
             vehicle,
             args.kind,
             args.out,
-            seed=args.seed,
-            epochs=args.epochs,
+            seed=car.training.seed,
+            epochs=epochs,
             on_epoch=on_epoch if args.kind != "identified" else None,
             allow_mismatch=args.allow_mismatch,
             source=str(args.data),

@@ -66,8 +66,8 @@ def add_bag_args(parser: argparse.ArgumentParser) -> None:
 
 def cmd_collect_from_bag(args: argparse.Namespace) -> int:
     """Import the bag of ``--from-bag`` and save the data set to ``--out``."""
+    from rkmpc.cli.common import car_config
     from rkmpc.learning.data.bags import BagImportConfig, import_bag
-    from rkmpc.sim.scenario import vehicle_preset
 
     config = BagImportConfig(
         dt=args.dt,
@@ -85,7 +85,7 @@ def cmd_collect_from_bag(args: argparse.Namespace) -> int:
     if args.from_log is not None or args.excitation:
         raise ValueError("--from-bag, --from-log and --excitation exclude each other")
     try:
-        data = import_bag(args.from_bag, vehicle_preset(args.vehicle).params(), config, scale=args.scale)
+        data = import_bag(args.from_bag, car_config(args).vehicle, config, scale=args.scale)
     except ImportError as exc:  # pragma: no cover - depends on the environment
         print(f"rkmpc: error: {exc}", file=sys.stderr)
         return 2

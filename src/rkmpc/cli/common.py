@@ -3,17 +3,26 @@
 from __future__ import annotations
 
 import argparse
+import math
 import os
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from rkmpc.sim.carfile import CarConfig
 
 __all__ = [
     "CACHE_HELP",
     "VEHICLES",
+    "add_config_args",
     "add_force_arg",
     "add_parallel_args",
     "at_least",
+    "car_config",
     "ints",
+    "positive_float",
     "split_controllers",
 ]
 
@@ -69,3 +78,71 @@ def ints(text: str, what: str) -> tuple[int, ...]:
         return tuple(int(v) for v in text.split(",") if v.strip())
     except ValueError:
         raise ValueError(f"{what} must be comma-separated integers, got {text!r}") from None
+
+
+def positive_float(text: str) -> float:
+    """An argparse ``type``: a finite number > 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a number > 0, got {text!r}") from None
+    if not (math.isfinite(value) and value > 0.0):
+        raise argparse.ArgumentTypeError(f"must be finite and > 0, got {text!r}")
+    return value
+
+
+def add_config_args(parser: argparse.ArgumentParser, *, pace: bool = True) -> None:
+    """``--config FILE`` (a car file) and, with ``pace``, ``--lateral-accel`` and ``--max-speed``."""
+    parser.add_argument(
+        "--config",
+        type=Path,
+        default=None,
+        metavar="CAR.toml",
+        help="car file: vehicle, plant, speed limits, controllers, training (options given here win)",
+    )
+    parser.add_argument(
+        "--vehicle",
+        default=None,
+        choices=VEHICLES,
+        help="vehicle preset; else the --config file's (default: f1tenth)",
+    )
+    if pace:
+        parser.add_argument(
+            "--lateral-accel",
+            type=positive_float,
+            default=None,
+            metavar="A",
+            help="the pace: lateral-acceleration limit (m/s^2); braking and traction scale with it",
+        )
+        parser.add_argument(
+            "--max-speed", type=positive_float, default=None, metavar="V", help="the pace: top speed (m/s)"
+        )
+
+
+def car_config(args: argparse.Namespace) -> CarConfig:
+    """The effective car: the preset, then the ``--config`` file, then the options (flag > file > preset).
+
+    The training settings (``--seed``, ``--epochs``, ``--data-laps``, ``--kmpc-samples``) and the
+    zoo car (``--car``) given on the command line replace the file's; the pace
+    (``--lateral-accel``, ``--max-speed``) is applied last (:meth:`SpeedLimits.at_pace`).
+    """
+    from rkmpc.sim.carfile import CarConfig, load_car_config
+
+    given = getattr(args, "config", None)
+    vehicle = getattr(args, "vehicle", None)
+    if given is None:
+        config = CarConfig.from_preset(vehicle or "f1tenth")
+    else:
+        config = load_car_config(given)
+        if vehicle is not None and vehicle != config.preset:
+            raise ValueError(
+                f"--vehicle {vehicle} contradicts {given}: its [vehicle] preset is {config.preset!r}"
+            )
+    names = ("seed", "epochs", "data_laps", "kmpc_samples")
+    changes = {name: getattr(args, name) for name in names if getattr(args, name, None) is not None}
+    if changes:
+        config = replace(config, training=replace(config.training, **changes))
+    car = getattr(args, "car", None)
+    if car is not None:
+        config = replace(config, car=car)
+    return config.at_pace(getattr(args, "lateral_accel", None), getattr(args, "max_speed", None))

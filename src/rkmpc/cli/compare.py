@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from rkmpc.cli.common import split_controllers
+from rkmpc.cli.common import car_config, split_controllers
 
 __all__ = ["cmd_compare", "model_files"]
 
@@ -38,26 +38,29 @@ def cmd_compare(args: argparse.Namespace) -> int:
     from rkmpc.experiments.compare import CompareConfig, compare
     from rkmpc.experiments.report import title_of, write_comparison, write_single_run
 
+    car = car_config(args)
     single = args.command == "run"
     names = [args.controller] if single else split_controllers(args.controllers)
     config = CompareConfig(
         track=args.track,
         raceline=args.raceline,
         scale=args.scale,
-        vehicle=args.vehicle,
+        vehicle=car.preset,
         controllers=tuple(names),
-        laps=args.data_laps,
+        laps=car.training.data_laps,
         run_laps=args.laps,
-        seed=args.seed,
+        seed=car.training.seed,
         noise=args.noise,
         fault=args.fault,
-        kmpc_samples=args.kmpc_samples,
+        kmpc_samples=car.training.kmpc_samples,
         cache_dir=None if args.cache_dir is None else str(args.cache_dir),
         use_cache=not args.no_cache,
         model_files=tuple(model_files(names, args.model).items()),
-        epochs=args.epochs,
-        car=args.car,
+        epochs=car.training.epochs,
+        car=car.car,
         allow_mismatch=args.allow_mismatch,
+        limits=car.limits,
+        car_config=car,
     )
     track = config.scenario().track  # a bad track, scale or car is refused before any folder is made
     markers = ("metrics.json",) if single else ("results.json",)

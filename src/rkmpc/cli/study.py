@@ -6,7 +6,16 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from rkmpc.cli.common import CACHE_HELP, VEHICLES, add_parallel_args, at_least, ints, split_controllers
+from rkmpc.cli.common import (
+    CACHE_HELP,
+    VEHICLES,
+    add_config_args,
+    add_parallel_args,
+    at_least,
+    car_config,
+    ints,
+    split_controllers,
+)
 
 __all__ = ["add_study_parser", "cmd_study"]
 
@@ -29,8 +38,10 @@ def add_study_parser(sub: Any) -> None:
     tracks.add_argument("--controllers", default=",".join(ALL_CONTROLLERS))
     tracks.add_argument("--seeds", default="0", help="comma-separated seeds; one job per track and seed")
     tracks.add_argument("--scale", type=float, default=None)
-    tracks.add_argument("--vehicle", default="f1tenth", choices=VEHICLES)
-    tracks.add_argument("--kmpc-samples", type=int, default=50_000)
+    add_config_args(tracks)
+    tracks.add_argument(
+        "--kmpc-samples", type=at_least(1000), default=None, help="else the --config file's (default: 50000)"
+    )
     tracks.add_argument("--fault", default=None, help="also drive every controller with this fault")
     tracks.add_argument(
         "--epochs", type=at_least(1), default=None, help="training epochs of the learned models"
@@ -42,7 +53,10 @@ def add_study_parser(sub: Any) -> None:
     cars.add_argument("--tracks", default="builtin", help="as for `study tracks`")
     cars.add_argument("--controllers", default=",".join(CARS_CONTROLLERS))
     cars.add_argument("--seeds", default="0")
-    cars.add_argument("--kmpc-samples", type=int, default=50_000)
+    add_config_args(cars)
+    cars.add_argument(
+        "--kmpc-samples", type=at_least(1000), default=None, help="else the --config file's (default: 50000)"
+    )
     cars.add_argument(
         "--epochs", type=at_least(1), default=None, help="training epochs of the learned models"
     )
@@ -89,9 +103,18 @@ def cmd_study(args: argparse.Namespace) -> int:
     result: Any
     if args.study in ("tracks", "cars"):
         names = split_controllers(args.controllers)
-        options: dict[str, Any] = {"kmpc_samples": args.kmpc_samples, "epochs": args.epochs}
+        car = car_config(args)  # its seed is each job's
+        options: dict[str, Any] = {
+            "kmpc_samples": car.training.kmpc_samples,
+            "epochs": car.training.epochs,
+            "laps": car.training.data_laps,
+            "limits": car.limits,
+            "car_config": car,
+        }
         if args.study == "tracks":
             options["fault"] = args.fault
+            if car.car is not None:  # the cars study drives its own cars
+                options["car"] = car.car
         if args.cache_dir is not None:
             options["cache_dir"] = str(args.cache_dir)
         config = TracksStudyConfig(
@@ -99,7 +122,7 @@ def cmd_study(args: argparse.Namespace) -> int:
             controllers=names,
             seeds=ints(args.seeds, "--seeds"),
             scale=args.scale if args.study == "tracks" else None,
-            vehicle=args.vehicle if args.study == "tracks" else "f1tenth",
+            vehicle=car.preset,
             baseline="lmpc" if "lmpc" in names else None,
             study_options=options,
         )

@@ -11,7 +11,7 @@ lap with the fault and the effect is classified (:func:`fault_effect`).
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from typing import Any
 
 from rkmpc.analysis.metrics import LapMetrics
@@ -22,11 +22,12 @@ from rkmpc.core.versions import versions
 from rkmpc.experiments.models import ModelPlan, learn_models
 from rkmpc.experiments.results import ControllerRun, FaultOutcome, TrackResult
 from rkmpc.experiments.runs import run_controller
+from rkmpc.sim.carfile import CarConfig, TrainingSettings
 from rkmpc.sim.closed_loop import SimResult
 from rkmpc.sim.faults import DEFAULT_NOISE, get_fault
 from rkmpc.sim.log import StepLog
 from rkmpc.sim.run import RunSpec, run_record
-from rkmpc.sim.scenario import Scenario, load_scenario, vehicle_preset
+from rkmpc.sim.scenario import Scenario, VehiclePreset, load_scenario, vehicle_preset
 from rkmpc.track.speed_profile import SpeedLimits
 from rkmpc.vehicle.zoo import get_car
 
@@ -109,6 +110,11 @@ class CompareConfig:
     limits : SpeedLimits or None
         Speed-profile limits (the pace; :meth:`rkmpc.track.speed_profile.SpeedLimits.at_pace`);
         None: the vehicle preset's.
+    car_config : CarConfig or None
+        The car as a car file set it up (:mod:`rkmpc.sim.carfile`): its parameters and the
+        controllers' settings replace the ``vehicle`` preset's, whose name it must have. The
+        fields above stay authoritative (car, limits, seed, laps, samples, epochs): the copy kept
+        here is brought in line with them, and the results record it as the effective configuration.
     """
 
     track: str
@@ -132,6 +138,7 @@ class CompareConfig:
     car: str | None = None
     allow_mismatch: bool = False
     limits: SpeedLimits | None = None
+    car_config: CarConfig | None = None
 
     def __post_init__(self) -> None:
         if self.limits is not None and not isinstance(self.limits, SpeedLimits):
@@ -148,6 +155,27 @@ class CompareConfig:
             get_fault(self.fault)
         if self.car is not None:
             get_car(self.car)
+        if self.car_config is not None:
+            self._align_car_config(self.car_config)
+
+    def _align_car_config(self, car: CarConfig) -> None:
+        if not isinstance(car, CarConfig):
+            raise ParameterError(f"CompareConfig.car_config must be a CarConfig or None, got {car!r}")
+        if car.preset != self.vehicle:
+            raise ParameterError(
+                f"CompareConfig: car_config is a {car.preset!r} car but vehicle is {self.vehicle!r}"
+            )
+        training = TrainingSettings(
+            epochs=self.epochs, seed=self.seed, data_laps=self.laps, kmpc_samples=self.kmpc_samples
+        )
+        limits = self.limits if self.limits is not None else car.limits
+        controllers = car.controllers
+        if self.rkmpc is not None:
+            controllers = replace(controllers, rkmpc=self.rkmpc)
+        if self.rkmpc_paper is not None:
+            controllers = replace(controllers, rkmpc_paper=self.rkmpc_paper)
+        aligned = replace(car, car=self.car, limits=limits, training=training, controllers=controllers)
+        object.__setattr__(self, "car_config", aligned)
 
     def plan(self) -> ModelPlan:
         """What to learn for the comparison."""
@@ -174,9 +202,13 @@ class CompareConfig:
         }[controller]
         if given is not None:
             return given
-        preset = vehicle_preset(self.vehicle).options_for(controller)
+        preset = self.vehicle_preset().options_for(controller)
         tuned: ResidualMPCConfig = preset["config"] if "config" in preset else default
         return tuned
+
+    def vehicle_preset(self) -> VehiclePreset:
+        """The car's preset: the car file's when given, else the ``vehicle`` preset."""
+        return vehicle_preset(self.vehicle) if self.car_config is None else self.car_config.vehicle_preset()
 
     def scenario(self) -> Scenario:
         """The track, car and reference of the comparison."""
@@ -187,6 +219,7 @@ class CompareConfig:
             vehicle=self.vehicle,
             car=self.car,
             limits=self.limits,
+            preset=None if self.car_config is None else self.car_config.vehicle_preset(),
         )
 
 
@@ -277,6 +310,7 @@ def compare(
         "kmpc_samples": config.kmpc_samples,
         "fault": config.fault,
         "allow_mismatch": config.allow_mismatch,
+        "car_config": None if config.car_config is None else config.car_config.to_json(),
         "versions": versions(),
     }
     fault = None if config.fault is None else FaultOutcome(config.fault, faulted, effects)

@@ -32,7 +32,7 @@ from rkmpc.learning.koopman.model import KoopmanModel
 from rkmpc.learning.pipeline import TrainConfig, TrainReport, train_model
 from rkmpc.learning.recipes import RECIPES, Recipe, recipe_for
 from rkmpc.sim.collect import collect, collect_excitation, excitation_lateral_accel
-from rkmpc.sim.scenario import Scenario, vehicle_preset
+from rkmpc.sim.scenario import Scenario
 
 __all__ = ["ModelPlan", "learn_models", "train_excitation_model", "train_track_model"]
 
@@ -115,7 +115,7 @@ def train_excitation_model(
         "kind": recipe.kind,
         "vehicle": scenario.vehicle_name,
         "vehicle_params": asdict(scenario.vehicle),
-        "plant": vehicle_preset(scenario.vehicle_name).plant,
+        "plant": scenario.vehicle_preset.plant,
         "speed_range": [scenario.limits.min_speed, scenario.limits.max_speed],
         "lateral_accel": excitation_lateral_accel(scenario),
         "dt": scenario.dt,

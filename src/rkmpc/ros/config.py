@@ -23,14 +23,13 @@ This module needs PyYAML (a dependency of the ``ros`` extra), not ROS.
 from __future__ import annotations
 
 import math
-import types
-import typing
 from collections.abc import Mapping
 from dataclasses import dataclass, field, fields, is_dataclass, replace
 from pathlib import Path
 from typing import Any
 
 from rkmpc.core.errors import InputFileError, ParameterError
+from rkmpc.core.settings import build_dataclass
 from rkmpc.learning.data.bags.stream import RECORD_STORAGES
 from rkmpc.track.speed_profile import SpeedLimits
 
@@ -319,7 +318,7 @@ def load_node_config(path: str | Path, overrides: Mapping[str, Any] | None = Non
         raise InputFileError(path, f"expected a mapping of settings, got {type(data).__name__}")
     for key, value in (overrides or {}).items():
         _set_dotted(data, key, value, path)
-    config = _build(NodeConfig, data, path, "")
+    config = build_dataclass(NodeConfig, data, path, hint=" (in the file or a ROS parameter)")
     base = path.resolve().parent
     return replace(
         config,
@@ -351,49 +350,3 @@ def _set_dotted(data: dict[str, Any], key: str, value: Any, path: Path) -> None:
             raise InputFileError(path, f"ROS parameter {key!r}: {part!r} is not a section", field=key)
         node = child
     node[parts[-1]] = value
-
-
-def _build(cls: type, data: Mapping[str, Any], path: Path, prefix: str) -> Any:
-    """An instance of the dataclass ``cls`` from ``data``, every key checked against its fields."""
-    hints = typing.get_type_hints(cls)
-    names = {f.name for f in fields(cls)}
-    for key in data:
-        if key not in names:
-            known = sorted(names)
-            problem = f"unknown key {key!r} (in the file or a ROS parameter); known: {known}"
-            raise InputFileError(path, problem, field=f"{prefix}{key}")
-    values: dict[str, Any] = {}
-    for f in fields(cls):
-        if f.name not in data:
-            continue
-        key = f"{prefix}{f.name}"
-        kind = hints[f.name]
-        raw = data[f.name]
-        if is_dataclass(kind):
-            if raw is None:
-                raw = {}
-            if not isinstance(raw, Mapping):
-                raise InputFileError(path, f"expected a mapping, got {raw!r}", field=key)
-            values[f.name] = _build(typing.cast(type, kind), raw, path, f"{key}.")
-        else:
-            values[f.name] = _value(kind, raw, path, key)
-    try:
-        return cls(**values)
-    except ParameterError as exc:
-        raise InputFileError(path, str(exc), field=prefix.rstrip(".") or None) from None
-
-
-def _value(kind: Any, raw: Any, path: Path, key: str) -> Any:
-    """``raw`` checked against the field type ``kind`` (str, float, bool, or one of them or None)."""
-    optional = isinstance(kind, types.UnionType) and type(None) in typing.get_args(kind)
-    base = next(a for a in typing.get_args(kind) if a is not type(None)) if optional else kind
-    if optional and (raw is None or raw == ""):
-        return None
-    if base is bool and isinstance(raw, bool):
-        return raw
-    if base is float and isinstance(raw, int | float) and not isinstance(raw, bool):
-        return float(raw)
-    if base is str and isinstance(raw, str) and raw:
-        return raw
-    expected = {bool: "true or false", float: "a number", str: "a non-empty string"}[base]
-    raise InputFileError(path, f"expected {expected}{' or null' if optional else ''}, got {raw!r}", field=key)

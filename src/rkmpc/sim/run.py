@@ -12,7 +12,7 @@ from rkmpc.core.versions import versions
 from rkmpc.learning.contract import CONTRACT_KEY
 from rkmpc.sim.closed_loop import SimConfig, SimResult, simulate
 from rkmpc.sim.faults import DEFAULT_NOISE, NoiseFault, get_fault
-from rkmpc.sim.scenario import Scenario, vehicle_preset
+from rkmpc.sim.scenario import Scenario
 from rkmpc.vehicle.plants.base import Plant
 from rkmpc.vehicle.wrappers import NoiseStd, ObservationNoise
 
@@ -81,12 +81,12 @@ def drive(
 ) -> SimResult:
     """Drive one controller in the scenario, on the plant the spec asks for.
 
-    The controller gets the vehicle preset's options for it
-    (:attr:`rkmpc.sim.scenario.VehiclePreset.controller_options`), overridden
+    The controller gets the scenario's options for it (its vehicle preset's or its car file's,
+    :meth:`rkmpc.sim.scenario.Scenario.options_for`), overridden
     by ``controller_options``. The log's metadata records the controller,
     seed, fault and the scenario's contract (car, period, track scale).
     """
-    preset = vehicle_preset(scenario.vehicle_name).options_for(spec.controller)
+    preset = scenario.options_for(spec.controller)
     options = {**preset, **(controller_options or {})}
     controller = make_controller(spec.controller, scenario.reference, scenario.vehicle, **options)
     plant = build_plant(scenario, spec)

@@ -167,6 +167,9 @@ class Scenario:
         The car actually driven, from the zoo (:mod:`rkmpc.vehicle.zoo`); the
         controllers still get ``vehicle``, the preset's nominal parameters.
         None drives the preset's own plant.
+    preset : VehiclePreset or None, optional
+        The car's preset as a car file made it (:mod:`rkmpc.sim.carfile`: its plant and its
+        controllers' options); None for :data:`VEHICLES` ``[vehicle_name]``.
     """
 
     track: Track
@@ -176,12 +179,22 @@ class Scenario:
     reference: Reference
     dt: float
     car: CarSpec | None = None
+    preset: VehiclePreset | None = None
+
+    @property
+    def vehicle_preset(self) -> VehiclePreset:
+        """The car's preset: the one given, else the named one."""
+        return self.preset if self.preset is not None else vehicle_preset(self.vehicle_name)
+
+    def options_for(self, controller: str) -> dict[str, Any]:
+        """The options of ``controller`` tuned for this car (:meth:`VehiclePreset.options_for`)."""
+        return self.vehicle_preset.options_for(controller)
 
     def make_plant(self, seed: int = 0) -> Plant:
         """A fresh plant of the car this scenario drives (``seed``: its odometry noise, if any)."""
         if self.car is not None:
             return self.car.make_plant(seed)
-        return make_plant(vehicle_preset(self.vehicle_name).plant)
+        return make_plant(self.vehicle_preset.plant)
 
     def provenance(self) -> Provenance:
         """The conditions of this scenario a data set or a model must have been made with.
@@ -231,6 +244,7 @@ def load_scenario(
     limits: SpeedLimits | None = None,
     dt: float = 0.05,
     car: str | None = None,
+    preset: VehiclePreset | None = None,
 ) -> Scenario:
     """Build a scenario from a track name or file and a vehicle preset.
 
@@ -255,8 +269,12 @@ def load_scenario(
         A zoo car to drive instead of the preset's plant (:func:`rkmpc.vehicle.zoo.get_car`:
         a variant name or ``"random-<seed>"``); only with the ``f1tenth`` preset, whose
         nominal parameters the controllers keep.
+    preset : VehiclePreset, optional
+        The car's preset as a car file made it (:meth:`rkmpc.sim.carfile.CarConfig.vehicle_preset`):
+        its parameters, plant, limits and controllers' options replace those of ``vehicle``'s.
     """
-    preset = vehicle_preset(vehicle)
+    given = preset
+    preset = vehicle_preset(vehicle) if given is None else given
     if car is not None and vehicle != "f1tenth":
         raise ValueError(f"zoo cars are 1:10 cars; --car {car!r} needs --vehicle f1tenth, not {vehicle!r}")
     the_car = None if car is None else get_car(car)
@@ -291,4 +309,5 @@ def load_scenario(
         reference=reference,
         dt=dt,
         car=the_car,
+        preset=given,
     )
