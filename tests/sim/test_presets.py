@@ -32,7 +32,7 @@ def test_every_lmpc_based_controller_shares_the_lmpc_of_the_preset(vehicle):
 
 def test_fullsize_lmpc_is_the_tuned_one_and_f1tenth_keeps_the_defaults():
     assert VEHICLES["fullsize"].options_for("lmpc")["config"] == LMPCConfig(
-        steer_weight=200.0, steer_rate_weight=100.0
+        steer_weight=1000.0, steer_rate_weight=1000.0, heading_weight=20.0, speed_lead=0.5
     )
     f1tenth = VEHICLES["f1tenth"]
     assert f1tenth.options_for("lmpc")["config"] == LMPCConfig()
