@@ -1,4 +1,4 @@
-"""Plots of study results: lateral error and completion against training-data volume."""
+"""Plots of study results: training-data volume, cars, pace (lap time and error against the pace)."""
 
 from __future__ import annotations
 
@@ -11,7 +11,14 @@ from matplotlib.figure import Figure
 from rkmpc.analysis.statistics import Stats
 from rkmpc.analysis.styles import CONTROLLER_STYLE, controller_style
 
-__all__ = ["VolumeSeries", "plot_data_study"]
+__all__ = [
+    "PaceSeries",
+    "VolumeSeries",
+    "plot_cars_study",
+    "plot_data_study",
+    "plot_learn_pace",
+    "plot_pace_study",
+]
 
 #: Line styles of the data study, by controller (distinct where lines overlap), in the project's colours.
 _STYLES = {
@@ -139,3 +146,112 @@ def plot_cars_study(
     ax_lat.legend(fontsize="small", ncols=2)
     figure.suptitle("controllers on cars they were not built for")
     return figure
+
+
+@dataclass(frozen=True)
+class PaceSeries:
+    """One controller on one track of the pace study: one point per pace it drove.
+
+    Parameters
+    ----------
+    controller, track : str
+        Names (colour and label).
+    paces : sequence of (float, float)
+        ``(lateral_accel, max_speed)`` of each step (the x axis is the lateral limit).
+    lap_time, lateral : sequence of float or None
+        Lap time (s) and mean lateral error (m) of each step; None where the lap was not clean.
+    reference_lap_time : float
+        The track's reference lap time at the first pace (s), to compare tracks.
+    best_index : int or None
+        The step of the fastest clean lap (marked).
+    """
+
+    controller: str
+    track: str
+    paces: Sequence[tuple[float, float]]
+    lap_time: Sequence[float | None]
+    lateral: Sequence[float | None]
+    reference_lap_time: float
+    best_index: int | None
+
+
+def _values(values: Sequence[float | None]) -> np.ndarray:
+    return np.array([np.nan if v is None else v for v in values], dtype=float)
+
+
+def plot_pace_study(series: Sequence[PaceSeries], title: str) -> Figure:
+    """Lap time and mean lateral error of the clean laps against the pace, one line per controller and track.
+
+    With one track the lap time is in seconds; with several it is relative to each track's
+    reference lap time at the first pace (so that tracks share an axis). The fastest clean lap of
+    each line is marked with a star. The x axis is the lateral-acceleration limit, its ticks also
+    name the top speed.
+    """
+    fig = Figure(figsize=(11, 4.4), layout="constrained")
+    ax_time, ax_lat = fig.subplots(1, 2, sharex=True)
+    tracks = list(dict.fromkeys(s.track for s in series))
+    relative = len(tracks) > 1
+    labelled: set[str] = set()
+    ticks: dict[float, str] = {}
+    for s in series:
+        x = np.array([p[0] for p in s.paces], dtype=float)
+        ticks.update({p[0]: f"{p[0]:g}\n{p[1]:g}" for p in s.paces})
+        times = _values(s.lap_time) / (s.reference_lap_time if relative else 1.0)
+        style = controller_style(s.controller)
+        label = None if s.controller in labelled else s.controller
+        labelled.add(s.controller)
+        alpha = 0.6 if relative else 1.0
+        ax_time.plot(x, times, marker="o", markersize=3, label=label, alpha=alpha, **style)
+        ax_lat.plot(x, _values(s.lateral), marker="o", markersize=3, alpha=alpha, **style)
+        if s.best_index is not None:
+            color = style.get("color")
+            ax_time.plot(x[s.best_index], times[s.best_index], marker="*", markersize=11, color=color)
+            ax_lat.plot(
+                x[s.best_index], _values(s.lateral)[s.best_index], marker="*", markersize=11, color=color
+            )
+    for ax in (ax_time, ax_lat):
+        ax.set_xticks(sorted(ticks), [ticks[k] for k in sorted(ticks)])
+        ax.set_xlabel("pace: lateral limit (m/s$^2$) / top speed (m/s)")
+        ax.grid(True, alpha=0.3)
+    ax_time.set_ylabel("lap time / reference lap time at the first pace" if relative else "lap time (s)")
+    ax_lat.set_ylabel("mean lateral error (m), clean laps")
+    ax_time.legend(fontsize="small")
+    fig.suptitle(title)
+    return fig
+
+
+def plot_learn_pace(
+    labels: Sequence[str],
+    lap_time: Sequence[float | None],
+    clean: Sequence[bool],
+    lmpc_lap_time: Sequence[float | None],
+    lateral: Sequence[float | None],
+    title: str,
+) -> Figure:
+    """The learning-to-race curve: lap time and lateral error over iterations.
+
+    ``labels`` name each iteration's pace; an unclean iteration is drawn as a cross. The LMPC's
+    lap at the same pace (not learned) is drawn dashed for comparison.
+    """
+    fig = Figure(figsize=(10, 4.2), layout="constrained")
+    ax_time, ax_lat = fig.subplots(1, 2, sharex=True)
+    x = np.arange(len(labels))
+    ok = np.asarray(clean, dtype=bool)
+    times, lat = _values(lap_time), _values(lateral)
+    rk = controller_style("rkmpc")
+    ax_time.plot(x[ok], times[ok], marker="o", label="learned (clean laps)", **rk)
+    ax_time.plot(x[~ok], times[~ok], "x", color=rk["color"], markersize=10, label="not clean")
+    ax_time.plot(
+        x, _values(lmpc_lap_time), marker="s", label="LMPC at the same pace", **controller_style("lmpc")
+    )
+    ax_lat.plot(x[ok], lat[ok], marker="o", **rk)
+    ax_lat.plot(x[~ok], lat[~ok], "x", color=rk["color"], markersize=10)
+    for ax in (ax_time, ax_lat):
+        ax.set_xticks(x, [f"{i}\n{label}" for i, label in enumerate(labels)])
+        ax.set_xlabel("iteration / pace (m/s$^2$ / m/s)")
+        ax.grid(True, alpha=0.3)
+    ax_time.set_ylabel("lap time (s)")
+    ax_lat.set_ylabel("mean lateral error (m)")
+    ax_time.legend(fontsize="small")
+    fig.suptitle(title)
+    return fig

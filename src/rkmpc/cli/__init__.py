@@ -1,4 +1,4 @@
-"""Command line: ``rkmpc run | compare | collect | train | tracks | study ... | node | sim-node | car-loop``.
+"""Command line: ``rkmpc run | compare | collect | train | tracks | study ... | learn-pace | node | ...``.
 
 This module only parses arguments and dispatches to the library; what each
 command computes and writes lives in :mod:`rkmpc.experiments`, :mod:`rkmpc.sim`
@@ -20,6 +20,7 @@ from typing import Any
 from rkmpc.cli.bags import add_bag_args, cmd_collect_from_bag
 from rkmpc.cli.common import CACHE_HELP, add_config_args, add_force_arg, at_least, car_config
 from rkmpc.cli.compare import cmd_compare
+from rkmpc.cli.learn_pace import add_learn_pace_parser, cmd_learn_pace
 from rkmpc.cli.ros import ROS_COMMANDS, add_ros_parsers
 from rkmpc.cli.study import add_study_parser, cmd_study
 from rkmpc.core.errors import IdentificationWarning, RkmpcError
@@ -181,6 +182,7 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument("--out", required=True, type=Path, help="model file")
     sub.add_parser("tracks", help="list the built-in tracks")
     add_study_parser(sub)
+    add_learn_pace_parser(sub)
     add_ros_parsers(sub)
     return parser
 
@@ -193,6 +195,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "collect": _cmd_collect,
         "train": _cmd_train,
         "study": cmd_study,
+        "learn-pace": cmd_learn_pace,
         "run": cmd_compare,
         "compare": cmd_compare,
         **ROS_COMMANDS,

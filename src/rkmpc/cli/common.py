@@ -18,10 +18,12 @@ __all__ = [
     "VEHICLES",
     "add_config_args",
     "add_force_arg",
+    "add_ladder_args",
     "add_parallel_args",
     "at_least",
     "car_config",
     "ints",
+    "ladder_from_args",
     "positive_float",
     "split_controllers",
 ]
@@ -146,3 +148,50 @@ def car_config(args: argparse.Namespace) -> CarConfig:
     if car is not None:
         config = replace(config, car=car)
     return config.at_pace(getattr(args, "lateral_accel", None), getattr(args, "max_speed", None))
+
+
+def _pace(text: str, what: str) -> tuple[float, float]:
+    parts = text.strip().split(":")
+    try:
+        lateral, speed = (float(v) for v in parts)
+    except ValueError:
+        raise ValueError(f"{what}: a pace is LATERAL:SPEED (m/s^2:m/s), e.g. 4:3.5, got {text!r}") from None
+    return lateral, speed
+
+
+def add_ladder_args(parser: argparse.ArgumentParser) -> None:
+    """``--paces`` or ``--start/--step/--steps``: the pace ladder (lateral limit : top speed)."""
+    parser.add_argument(
+        "--paces",
+        default=None,
+        help="the ladder as LATERAL:SPEED pairs, e.g. 4:3.5,5:4.5 (default: from --start, --step, --steps)",
+    )
+    parser.add_argument(
+        "--start",
+        default=None,
+        help="first pace LATERAL:SPEED (default: the vehicle preset's, 4:3.5 for f1tenth)",
+    )
+    parser.add_argument(
+        "--step",
+        default=None,
+        help="pace step LATERAL:SPEED (default: 0.5:0.5 for f1tenth; top speed capped at the car's)",
+    )
+    parser.add_argument(
+        "--steps", type=at_least(0), default=None, help="steps above the first pace (default: 10 for f1tenth)"
+    )
+
+
+def ladder_from_args(args: argparse.Namespace) -> tuple[tuple[float, float], ...]:
+    """The ladder the ``add_ladder_args`` options ask for."""
+    from rkmpc.experiments.studies.pace_rules import check_ladder, pace_ladder
+
+    if args.paces is not None:
+        if args.start is not None or args.step is not None or args.steps is not None:
+            raise ValueError("give either --paces or --start/--step/--steps, not both")
+        return check_ladder("--paces", [_pace(t, "--paces") for t in args.paces.split(",") if t.strip()])
+    return pace_ladder(
+        args.vehicle,
+        start=None if args.start is None else _pace(args.start, "--start"),
+        step=None if args.step is None else _pace(args.step, "--step"),
+        steps=args.steps,
+    )

@@ -1,4 +1,4 @@
-"""``rkmpc study tracks | cars | data``: the multi-run studies."""
+"""``rkmpc study tracks | cars | data | pace``: the multi-run studies."""
 
 from __future__ import annotations
 
@@ -10,10 +10,12 @@ from rkmpc.cli.common import (
     CACHE_HELP,
     VEHICLES,
     add_config_args,
+    add_ladder_args,
     add_parallel_args,
     at_least,
     car_config,
     ints,
+    ladder_from_args,
     split_controllers,
 )
 
@@ -24,6 +26,7 @@ def add_study_parser(sub: Any) -> None:
     from rkmpc.experiments.compare import ALL_CONTROLLERS
     from rkmpc.experiments.studies.cars import CARS_CONTROLLERS, DEFAULT_CARS
     from rkmpc.experiments.studies.data import DEFAULT_SIZES
+    from rkmpc.experiments.studies.pace_job import PACE_CONTROLLERS
 
     study = sub.add_parser("study", help="multi-run studies: over tracks, cars, or training-data volume")
     kinds = study.add_subparsers(dest="study", required=True)
@@ -73,6 +76,24 @@ def add_study_parser(sub: Any) -> None:
         "--epochs", type=at_least(1), default=None, help="training epochs (default: the models' own)"
     )
     add_parallel_args(data)
+    pace = kinds.add_parser(
+        "pace", help="raise each controller's pace up a ladder until its lap is no longer clean"
+    )
+    pace.add_argument("--tracks", default="builtin", help="as for `study tracks`")
+    pace.add_argument("--controllers", default=",".join(PACE_CONTROLLERS))
+    pace.add_argument("--seed", type=at_least(0), default=0)
+    pace.add_argument("--scale", type=float, default=None)
+    pace.add_argument("--vehicle", default="f1tenth", choices=VEHICLES)
+    add_ladder_args(pace)
+    pace.add_argument(
+        "--data-laps", type=at_least(1), default=2, help="laps of data learned from at each pace"
+    )
+    pace.add_argument("--kmpc-samples", type=int, default=50_000)
+    pace.add_argument(
+        "--epochs", type=at_least(1), default=None, help="training epochs of the learned models"
+    )
+    pace.add_argument("--cache-dir", type=Path, default=None, help=CACHE_HELP)
+    add_parallel_args(pace)
 
 
 def _study_progress(console: Any) -> Any:
@@ -87,12 +108,14 @@ def cmd_study(args: argparse.Namespace) -> int:
     from rich.console import Console
 
     from rkmpc.analysis.plots import save_figure
-    from rkmpc.analysis.study_plots import plot_cars_study, plot_data_study
+    from rkmpc.analysis.study_plots import plot_cars_study, plot_data_study, plot_pace_study
     from rkmpc.core.io import check_output_folder, output_folder, write_json_atomic, write_text_atomic
     from rkmpc.experiments.parallel import limit_threads
     from rkmpc.experiments.studies.cars import CarsStudyConfig, study_cars
     from rkmpc.experiments.studies.common import expand_tracks
     from rkmpc.experiments.studies.data import DataStudyConfig, study_data
+    from rkmpc.experiments.studies.pace import study_pace
+    from rkmpc.experiments.studies.pace_job import PaceStudyConfig
     from rkmpc.experiments.studies.tracks import TracksStudyConfig, study_tracks
 
     # The folder is checked before hours of runs, and made when they are done.
@@ -131,6 +154,20 @@ def cmd_study(args: argparse.Namespace) -> int:
         else:
             cars_config = CarsStudyConfig(cars=args.cars, tracks=config)
             result = study_cars(cars_config, **where, progress=_study_progress(console), say=console.print)
+    elif args.study == "pace":
+        pace_config = PaceStudyConfig(
+            tracks=expand_tracks(args.tracks.split(",")),
+            controllers=tuple(split_controllers(args.controllers)),
+            paces=ladder_from_args(args),
+            seed=args.seed,
+            scale=args.scale,
+            vehicle=args.vehicle,
+            laps=args.data_laps,
+            epochs=args.epochs,
+            kmpc_samples=args.kmpc_samples,
+            cache_dir=None if args.cache_dir is None else str(args.cache_dir),
+        )
+        result = study_pace(pace_config, **where, progress=_study_progress(console))
     else:
         data_config = DataStudyConfig(
             track=args.track,
@@ -155,4 +192,7 @@ def cmd_study(args: argparse.Namespace) -> int:
         title = f"training data volume, {args.track}"
         figure = plot_data_study(result.series(), result.baseline.lateral_error_mean_m, title)
         save_figure(figure, args.out / "study_data.png")
+    elif args.study == "pace":
+        title = f"pace study, seed {args.seed}: clean laps up the pace ladder"
+        save_figure(plot_pace_study(result.series(), title), args.out / "study_pace.png")
     return 0

@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import asdict, replace
 from typing import Any
 
 from rkmpc.core.versions import versions
 from rkmpc.learning.data.dataset import TransitionDataset
 from rkmpc.learning.data.excitation import ExcitationConfig, random_excitation
+from rkmpc.sim.closed_loop import SimResult
 from rkmpc.sim.run import RunSpec, drive
 from rkmpc.sim.scenario import Scenario
 from rkmpc.vehicle.wrappers import NoiseStd
@@ -20,6 +22,7 @@ def collect(
     laps: int = 2,
     seed: int = 0,
     noise: NoiseStd | None = None,
+    controller_options: Mapping[str, Any] | None = None,
 ) -> TransitionDataset:
     """Drive ``controller`` for ``laps`` laps and return the logged transitions.
 
@@ -28,7 +31,8 @@ def collect(
     becomes one episode (:meth:`TransitionDataset.from_log`). Observations are
     what the controller saw (noisy when ``noise`` is given); commands are the
     set-points it sent. A run that ends early (off track, timeout) still
-    returns its data; the outcome is in the metadata.
+    returns its data; the outcome is in the metadata. :func:`record` returns
+    the run as well.
 
     Parameters
     ----------
@@ -42,6 +46,8 @@ def collect(
         Seed of the run (measurement noise).
     noise : NoiseStd or None
         Measurement noise, or None for exact observations.
+    controller_options : mapping, optional
+        Options of the controller (a learned controller's ``model``), over the preset's.
 
     Returns
     -------
@@ -49,11 +55,23 @@ def collect(
         With metadata ``vehicle``, ``track``, ``scale``, ``dt`` (s),
         ``wheelbase`` (m), ``seed``, ``controller``, ``laps``, ``noise``,
         ``outcome``, ``completed``, ``progress_laps``, ``lap_times``,
+        ``fallback_count``, ``steps``, ``status_counts``,
         ``rkmpc_version``, ``versions``, ``source = "collect"`` and the contract
         (:attr:`TransitionDataset.contract`: car, period, scale, state ranges).
     """
-    spec = RunSpec(controller, laps=laps, seed=seed, noise=noise)
-    result = drive(scenario, spec)
+    _, data = record(
+        scenario,
+        RunSpec(controller, laps=laps, seed=seed, noise=noise),
+        controller_options=controller_options,
+    )
+    return data
+
+
+def record(
+    scenario: Scenario, spec: RunSpec, *, controller_options: Mapping[str, Any] | None = None
+) -> tuple[SimResult, TransitionDataset]:
+    """Drive ``spec`` (:func:`rkmpc.sim.run.drive`): the run and its transitions (see :func:`collect`)."""
+    result = drive(scenario, spec, controller_options=controller_options)
     all_versions = versions()
     metadata: dict[str, Any] = {
         "source": "collect",
@@ -63,20 +81,22 @@ def collect(
         "scale": scenario.track.scale,
         "dt": scenario.dt,
         "wheelbase": scenario.vehicle.wheelbase,
-        "seed": seed,
-        "controller": controller,
-        "laps": laps,
-        "noise": None if noise is None else asdict(noise),
+        "seed": spec.seed,
+        "controller": spec.controller,
+        "laps": spec.laps,
+        "noise": None if spec.noise is None else asdict(spec.noise),
         "outcome": result.outcome,
         "completed": result.completed,
         "progress_laps": result.progress,
         "lap_times": [float(t) for t in result.lap_times],
         "fallback_count": result.fallback_count,
+        "steps": len(result.log),
+        "status_counts": dict(sorted(result.status_counts.items())),
         "rkmpc_version": all_versions["rkmpc"],
         "versions": all_versions,
     }
     # The log records the scenario's contract (drive); the data set adds its state ranges.
-    return TransitionDataset.from_log(result.log, metadata=metadata, dt=scenario.dt)
+    return result, TransitionDataset.from_log(result.log, metadata=metadata, dt=scenario.dt)
 
 
 def excitation_lateral_accel(scenario: Scenario) -> float:
