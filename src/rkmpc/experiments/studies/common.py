@@ -1,4 +1,4 @@
-"""What both studies share: settings checks, track lists, versions."""
+"""What the studies share: settings checks, track lists, versions."""
 
 from __future__ import annotations
 
@@ -6,6 +6,7 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
+from rkmpc.control.registry import CONTROLLERS
 from rkmpc.core.errors import ParameterError
 from rkmpc.core.validation import is_integer, is_positive_number
 from rkmpc.core.versions import versions
@@ -17,11 +18,13 @@ __all__ = [
     "check_parallel",
     "check_scale_vehicle",
     "check_track",
+    "controller_names",
     "expand_tracks",
     "int_tuple",
     "str_tuple",
     "study_versions",
     "track_label",
+    "track_specs",
 ]
 
 
@@ -63,6 +66,26 @@ def check_track(spec: str) -> None:
             f"track {spec!r} is neither a built-in track ({', '.join(list_builtin_tracks())}) "
             "nor an existing centre-line CSV file"
         )
+
+
+def track_specs(name: str, tracks: Any) -> tuple[str, ...]:
+    """``tracks`` (one spec, or a sequence of names or files) as a checked tuple of track specs."""
+    raw = [tracks] if isinstance(tracks, (str, Path)) else tracks
+    if not isinstance(raw, Iterable):
+        raise ParameterError(f"{name} must be a sequence of tracks, got {raw!r}")
+    specs = str_tuple(name, [str(t) for t in raw])
+    for spec in specs:
+        check_track(spec)
+    return specs
+
+
+def controller_names(name: str, controllers: Any) -> tuple[str, ...]:
+    """``controllers`` as a checked tuple of registered controller names."""
+    names = str_tuple(name, controllers)
+    unknown = [c for c in names if c not in CONTROLLERS]
+    if unknown:
+        raise ParameterError(f"{name}: unknown {unknown}; known: {sorted(CONTROLLERS)}")
+    return names
 
 
 def check_scale_vehicle(scale: Any, vehicle: Any) -> None:

@@ -20,13 +20,17 @@ from dataclasses import dataclass
 from typing import Any
 
 from rkmpc.analysis.metrics import LapMetrics
-from rkmpc.control.registry import CONTROLLERS
 from rkmpc.core.errors import ParameterError, RkmpcError
 from rkmpc.core.validation import is_integer
 from rkmpc.experiments.cache import ModelCache
 from rkmpc.experiments.models import train_excitation_model, train_track_model
 from rkmpc.experiments.runs import run_controller
-from rkmpc.experiments.studies.common import check_scale_vehicle, check_track, str_tuple, track_label
+from rkmpc.experiments.studies.common import (
+    check_scale_vehicle,
+    controller_names,
+    track_label,
+    track_specs,
+)
 from rkmpc.experiments.studies.pace_rules import (
     Pace,
     check_ladder,
@@ -102,19 +106,8 @@ class PaceStudyConfig:
     use_cache: bool = True
 
     def __post_init__(self) -> None:
-        tracks = str_tuple(
-            "PaceStudyConfig.tracks",
-            [self.tracks] if isinstance(self.tracks, str) else [str(t) for t in self.tracks],
-        )
-        for t in tracks:
-            check_track(t)
-        object.__setattr__(self, "tracks", tracks)
-        controllers = str_tuple("PaceStudyConfig.controllers", self.controllers)
-        unknown = [c for c in controllers if c not in CONTROLLERS]
-        if unknown:
-            raise ParameterError(
-                f"PaceStudyConfig.controllers: unknown {unknown}; known: {sorted(CONTROLLERS)}"
-            )
+        object.__setattr__(self, "tracks", track_specs("PaceStudyConfig.tracks", self.tracks))
+        controllers = controller_names("PaceStudyConfig.controllers", self.controllers)
         object.__setattr__(self, "controllers", controllers)
         check_scale_vehicle(self.scale, self.vehicle)
         ladder = (

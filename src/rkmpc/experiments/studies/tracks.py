@@ -13,14 +13,13 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from collections.abc import Callable, Iterable, Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
 from rkmpc.analysis.statistics import ControllerSummary, RunGroup, RunRow, summarise_runs
 from rkmpc.analysis.tables import fmt, fmt_stats, markdown
-from rkmpc.control.registry import CONTROLLERS
 from rkmpc.core.errors import ParameterError
 from rkmpc.core.jsonutil import to_json_ready
 from rkmpc.experiments.cache import ModelCache
@@ -31,11 +30,11 @@ from rkmpc.experiments.results import TrackResult
 from rkmpc.experiments.studies.common import (
     check_parallel,
     check_scale_vehicle,
-    check_track,
+    controller_names,
     int_tuple,
-    str_tuple,
     study_versions,
     track_label,
+    track_specs,
 )
 from rkmpc.learning.recipes import recipe_for
 
@@ -91,19 +90,8 @@ class TracksStudyConfig:
     _OWN = ("track", "scale", "vehicle", "controllers", "seed", "kmpc_model")
 
     def __post_init__(self) -> None:
-        raw = [self.tracks] if isinstance(self.tracks, (str, Path)) else self.tracks
-        if not isinstance(raw, Iterable):
-            raise ParameterError(f"TracksStudyConfig.tracks must be a sequence of tracks, got {raw!r}")
-        tracks = str_tuple("TracksStudyConfig.tracks", [str(t) for t in raw])
-        for t in tracks:
-            check_track(t)
-        object.__setattr__(self, "tracks", tracks)
-        controllers = str_tuple("TracksStudyConfig.controllers", self.controllers)
-        unknown = [c for c in controllers if c not in CONTROLLERS]
-        if unknown:
-            raise ParameterError(
-                f"TracksStudyConfig.controllers: unknown {unknown}; known: {sorted(CONTROLLERS)}"
-            )
+        object.__setattr__(self, "tracks", track_specs("TracksStudyConfig.tracks", self.tracks))
+        controllers = controller_names("TracksStudyConfig.controllers", self.controllers)
         object.__setattr__(self, "controllers", controllers)
         object.__setattr__(self, "seeds", int_tuple("TracksStudyConfig.seeds", self.seeds, minimum=0))
         check_scale_vehicle(self.scale, self.vehicle)
