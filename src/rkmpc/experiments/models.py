@@ -67,15 +67,22 @@ def _record(report: TrainReport, kind: str, model: KoopmanModel, **extra: Any) -
     )
 
 
-def _progress(say: Callable[[str], None] | None, recipe: Recipe, epochs: int | None) -> EpochProgress | None:
-    """The progress callback of training ``recipe``'s model, or None when nobody listens."""
-    if say is None:
-        return None
-    lifting = recipe.default_model(0, epochs).lifting
-    if not isinstance(lifting, MLPLifting) or lifting.training is None:
-        return None
-    what = f"training the {recipe.kind} model of {recipe.controller}"
-    return EpochProgress(say, what, lifting.training.epochs)
+def _train(
+    data: TransitionDataset,
+    scenario: Scenario,
+    recipe: Recipe,
+    config: TrainConfig,
+    say: Callable[[str], None] | None,
+) -> tuple[KoopmanModel, TrainReport]:
+    """Train ``config``'s model for the scenario's car; ``say``, when given, hears its progress."""
+    on_epoch = None
+    lifting = config.unfitted_model().lifting
+    if say is not None and isinstance(lifting, MLPLifting) and lifting.training is not None:
+        what = f"training the {recipe.kind} model of {recipe.controller}"
+        on_epoch = EpochProgress(say, what, lifting.training.epochs)
+    return train_model(
+        data, scenario.vehicle.wheelbase, config, vehicle=scenario.vehicle_name, on_epoch=on_epoch
+    )
 
 
 def _through_cache(
@@ -134,13 +141,7 @@ def train_excitation_model(
         data = collect_excitation(scenario, n_samples=samples, seed=seed)
         collect_time = time.perf_counter() - t0
         config = TrainConfig(kind=recipe.kind, augment=augment, model=model)
-        fitted, report = train_model(
-            data,
-            scenario.vehicle.wheelbase,
-            config,
-            vehicle=scenario.vehicle_name,
-            on_epoch=_progress(say, recipe, epochs),
-        )
+        fitted, report = _train(data, scenario, recipe, config, say)
         return fitted, _record(report, recipe.kind, fitted, collect_time_s=collect_time)
 
     return _through_cache(cache, spec, build)
@@ -176,13 +177,7 @@ def train_track_model(
     }
 
     def build() -> tuple[KoopmanModel, ModelRecord]:
-        model, report = train_model(
-            data,
-            scenario.vehicle.wheelbase,
-            config,
-            vehicle=scenario.vehicle_name,
-            on_epoch=_progress(say, recipe, epochs),
-        )
+        model, report = _train(data, scenario, recipe, config, say)
         return model, _record(report, recipe.kind, model)
 
     return _through_cache(cache, spec, build)
