@@ -19,10 +19,9 @@ from typing import Any
 from rkmpc.analysis.statistics import ControllerSummary, Stats, summarise_runs
 from rkmpc.analysis.tables import fmt, markdown
 from rkmpc.core.errors import ParameterError
-from rkmpc.core.jsonutil import to_json_ready
 from rkmpc.experiments.compare import CompareConfig
 from rkmpc.experiments.parallel import JobOutcome
-from rkmpc.experiments.studies.common import check_parallel, str_tuple, study_versions
+from rkmpc.experiments.studies.common import check_parallel, json_object, str_tuple, study_versions
 from rkmpc.experiments.studies.tracks import (
     TrackJob,
     TracksStudyConfig,
@@ -205,10 +204,7 @@ class CarsStudyResult:
             "targets": [t.to_json() for t in self.targets()],
             "jobs": [job.to_json() for job in self.jobs],
         }
-        result = to_json_ready(out)
-        if not isinstance(result, dict):  # pragma: no cover - to_json_ready keeps mappings
-            raise TypeError("a study result must convert to a JSON object")
-        return result
+        return json_object(out)
 
     def to_markdown(self) -> str:
         """One summary table per car, then the targets of RKMPC against the LMPC on every run."""

@@ -8,6 +8,7 @@ from typing import Any
 
 from rkmpc.control.registry import CONTROLLERS
 from rkmpc.core.errors import ParameterError
+from rkmpc.core.jsonutil import to_json_ready
 from rkmpc.core.validation import is_integer, is_positive_number
 from rkmpc.core.versions import versions
 from rkmpc.experiments.parallel import BACKENDS
@@ -21,6 +22,7 @@ __all__ = [
     "controller_names",
     "expand_tracks",
     "int_tuple",
+    "json_object",
     "str_tuple",
     "study_versions",
     "track_label",
@@ -127,3 +129,11 @@ def expand_tracks(items: Iterable[str | Path]) -> tuple[str, ...]:
 def study_versions() -> dict[str, str]:
     """:func:`rkmpc.core.versions.versions` plus the learning and parallel packages."""
     return versions(extra=("torch", "joblib", "dask", "distributed", "ray"))
+
+
+def json_object(out: dict[str, Any]) -> dict[str, Any]:
+    """A study result's record in plain JSON types (:func:`rkmpc.core.jsonutil.to_json_ready`)."""
+    result = to_json_ready(out)
+    if not isinstance(result, dict):  # pragma: no cover - to_json_ready keeps mappings
+        raise TypeError("a study result must convert to a JSON object")
+    return result

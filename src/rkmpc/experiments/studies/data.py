@@ -18,11 +18,11 @@ from rkmpc.analysis.statistics import Stats, stats
 from rkmpc.analysis.study_plots import VolumeSeries
 from rkmpc.analysis.tables import fmt, fmt_stats, markdown
 from rkmpc.core.errors import ParameterError
-from rkmpc.core.jsonutil import to_json_ready
 from rkmpc.experiments.parallel import Job, JobOutcome, run_jobs
 from rkmpc.experiments.runs import run_controller
 from rkmpc.experiments.studies.common import (
     check_parallel,
+    json_object,
     study_versions,
 )
 from rkmpc.experiments.studies.data_job import DEFAULT_SIZES, DataStudyConfig, data_job
@@ -117,10 +117,7 @@ class DataStudyResult:
             "summary": self.summary,
             "jobs": self.jobs,
         }
-        result = to_json_ready(out)
-        if not isinstance(result, dict):  # pragma: no cover - to_json_ready keeps mappings
-            raise TypeError("a study result must convert to a JSON object")
-        return result
+        return json_object(out)
 
     def series(self) -> list[VolumeSeries]:
         """The summary as one plot series per controller (see :mod:`rkmpc.analysis.study_plots`)."""

@@ -17,10 +17,15 @@ from typing import Any
 from rkmpc.analysis.metrics import LapMetrics, lap_metrics
 from rkmpc.analysis.tables import fmt, markdown
 from rkmpc.core.errors import ParameterError
-from rkmpc.core.jsonutil import to_json_ready
 from rkmpc.core.validation import is_integer
 from rkmpc.experiments.cache import ModelCache
-from rkmpc.experiments.studies.common import check_scale_vehicle, check_track, study_versions, track_label
+from rkmpc.experiments.studies.common import (
+    check_scale_vehicle,
+    check_track,
+    json_object,
+    study_versions,
+    track_label,
+)
 from rkmpc.experiments.studies.pace_job import PaceStudyConfig, train_on
 from rkmpc.experiments.studies.pace_rules import Pace, check_ladder, pace_label, pace_ladder, run_verdict
 from rkmpc.learning.data.dataset import TransitionDataset
@@ -162,10 +167,7 @@ class LearnPaceResult:
             "stopped": self.stopped,
             "iterations": self.iterations,
         }
-        result = to_json_ready(out)
-        if not isinstance(result, dict):  # pragma: no cover - to_json_ready keeps mappings
-            raise TypeError("a study result must convert to a JSON object")
-        return result
+        return json_object(out)
 
     def to_markdown(self) -> str:
         cfg = self.config

@@ -20,9 +20,8 @@ from rkmpc.analysis.statistics import stats
 from rkmpc.analysis.study_plots import PaceSeries
 from rkmpc.analysis.tables import fmt, fmt_stats, markdown
 from rkmpc.core.errors import ParameterError
-from rkmpc.core.jsonutil import to_json_ready
 from rkmpc.experiments.parallel import Job, JobOutcome, run_jobs
-from rkmpc.experiments.studies.common import check_parallel, study_versions, track_label
+from rkmpc.experiments.studies.common import check_parallel, json_object, study_versions, track_label
 from rkmpc.experiments.studies.pace_job import PaceStep, PaceStudyConfig, job_name, pace_job
 from rkmpc.experiments.studies.pace_rules import MAX_FALLBACK_SHARE, pace_label
 
@@ -140,10 +139,7 @@ class PaceStudyResult:
             "best": [self._best_row(r) for r in self.runs],
             "runs": [r.to_json() for r in self.runs],
         }
-        result = to_json_ready(out)
-        if not isinstance(result, dict):  # pragma: no cover - to_json_ready keeps mappings
-            raise TypeError("a study result must convert to a JSON object")
-        return result
+        return json_object(out)
 
     def _best_row(self, run: PaceRun) -> dict[str, Any]:
         best, stop = run.best(), run.stopped()

@@ -21,7 +21,6 @@ from typing import Any
 from rkmpc.analysis.statistics import ControllerSummary, RunGroup, RunRow, summarise_runs
 from rkmpc.analysis.tables import fmt, fmt_stats, markdown
 from rkmpc.core.errors import ParameterError
-from rkmpc.core.jsonutil import to_json_ready
 from rkmpc.experiments.cache import ModelCache
 from rkmpc.experiments.compare import LEARNED_CONTROLLERS, CompareConfig, compare
 from rkmpc.experiments.models import train_excitation_model
@@ -32,6 +31,7 @@ from rkmpc.experiments.studies.common import (
     check_scale_vehicle,
     controller_names,
     int_tuple,
+    json_object,
     study_versions,
     track_label,
     track_specs,
@@ -189,10 +189,7 @@ class TracksStudyResult:
             "rows": [row.to_json() for row in self.rows],
             "jobs": [job.to_json() for job in self.jobs],
         }
-        result = to_json_ready(out)
-        if not isinstance(result, dict):  # pragma: no cover - to_json_ready keeps mappings
-            raise TypeError("a study result must convert to a JSON object")
-        return result
+        return json_object(out)
 
     def to_markdown(self) -> str:
         """The summary table (``mean ± std [min, max]`` over completed laps), then one row per run."""
