@@ -208,12 +208,12 @@ class TrackingController(Controller):
     def _track(self, observation: Observation) -> tuple[ReferenceHorizon, np.ndarray]:
         """Project the car, take the reference horizon and its inputs; set the previous command once."""
         cfg = self.config
-        s = self._projected().s
-        ref = self.reference.horizon(s, cfg.horizon, cfg.dt)
-        u_ref = self._reference_inputs(ref)
         lead = round(cfg.speed_lead / cfg.dt)
+        ahead = self.reference.horizon(self._projected().s, cfg.horizon + lead, cfg.dt)
+        ref = ahead.head(cfg.horizon) if lead > 0 else ahead
+        u_ref = self._reference_inputs(ref)
         if lead > 0:  # the speed the profile asks for ``speed_lead`` later (s)
-            u_ref[:, 0] = self.reference.horizon(s, cfg.horizon + lead, cfg.dt).v[lead : lead + cfg.horizon]
+            u_ref[:, 0] = ahead.v[lead : lead + cfg.horizon]
         self.reference_speed = float(u_ref[0, 0])
         if self._guard.previous is None:
             self._guard.previous = self._first_previous_input(observation, u_ref)

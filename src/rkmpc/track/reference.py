@@ -62,6 +62,13 @@ class ReferenceHorizon:
     v: FloatArray
     delta: FloatArray
 
+    def head(self, n_steps: int) -> ReferenceHorizon:
+        """The first ``n_steps`` steps of this horizon (arrays of shape ``(n_steps + 1,)``)."""
+        k = n_steps + 1
+        return ReferenceHorizon(
+            self.s[:k], self.x[:k], self.y[:k], self.theta[:k], self.v[:k], self.delta[:k]
+        )
+
     def as_array(self) -> FloatArray:
         """Stack the reference as an ``(n + 1, 5)`` array with columns ``x, y, theta, v, delta``."""
         return np.column_stack([self.x, self.y, self.theta, self.v, self.delta])
