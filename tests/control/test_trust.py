@@ -62,3 +62,30 @@ def test_settings_are_validated() -> None:
         TrustConfig(error_low=0.3, error_high=0.2)
     with pytest.raises(ParameterError, match="error_smoothing"):
         TrustConfig(error_smoothing=1.5)
+    with pytest.raises(ParameterError, match="min_span"):
+        TrustConfig(min_span=1.5)
+    with pytest.raises(ParameterError, match="min_span"):
+        TrustConfig(min_span=float("nan"))
+
+
+def test_a_feature_that_hardly_varied_is_judged_against_its_size() -> None:
+    # Speed held at 3.5 m/s (spread 0.02: an oval at the profile's top speed), yaw rate through 0.
+    identity = np.eye(2)
+    x_min, x_max = np.array([3.49, -1.0]), np.array([3.51, 1.0])
+    x = np.array([3.5, 0.0])
+    noisy = np.array([3.53, 0.0])  # 0.03 m/s of speed noise
+
+    def error_after_one_noisy_step(config: TrustConfig) -> float:
+        guard = CorrectionTrust(identity, identity, identity, x_min, x_max, config)
+        guard.judge(x)
+        guard.expect(x, np.zeros(2))
+        guard.judge(noisy)
+        return guard.error
+
+    # The spread alone: 0.03 / 0.02 = 1.5 of the span, smoothed by 0.2 -> 0.3, past error_high.
+    assert error_after_one_noisy_step(TrustConfig(min_span=0.0)) == pytest.approx(0.3)
+    # Floored at 0.2 * 3.51 = 0.702 m/s: 0.03 / 0.702 * 0.2.
+    assert error_after_one_noisy_step(TrustConfig(min_span=0.2)) == pytest.approx(0.03 / 0.702 * 0.2)
+    # The yaw rate's range holds 0: its span (2) is above 0.2 * 1 and is kept.
+    guard = CorrectionTrust(identity, identity, identity, x_min, x_max, TrustConfig(min_span=0.2))
+    assert guard.judge(np.array([3.5, 1.3])) == pytest.approx(1.0 - (0.15 - 0.05) / 0.25)

@@ -50,7 +50,7 @@ def test_variants_change_what_they_say() -> None:
     light = get_car("light-short").params
     assert light.wheelbase == pytest.approx(0.9 * nominal.wheelbase)
     assert light.lf / light.wheelbase == pytest.approx(nominal.lf / nominal.wheelbase - 0.1)
-    assert get_car("low-grip").params.mu == 0.6
+    assert get_car("low-grip").params.mu == 0.7
     assert get_car("laggy-odom").odometry_latency == 0.04
 
 

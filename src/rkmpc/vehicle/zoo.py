@@ -30,11 +30,14 @@ Named variants (:data:`ZOO`, :func:`get_car`) and their sources:
     a standard servo turns 60 degrees in about 0.2 s at the horn, less at the
     wheel through the linkage) and a position resolution of 0.01 rad.
 ``low-grip``
-    NUC2 on a dusty floor: Pacejka tyres at ``mu`` 0.6 (the front axle's peak
+    NUC2 on a dusty floor: Pacejka tyres at ``mu`` 0.7 (the front axle's peak
     lateral acceleration, ``mu D sin(C pi / 2) g``, falls from about 11 m/s² to
-    6.7 m/s², against the 4 m/s² of the speed profile), speed loop with a lower
-    acceleration cap (2.5 m/s²: wheel spin). At ``mu`` 0.4 no controller
-    completes the built-in track.
+    7.8 m/s², against the 4 m/s² of the speed profile), speed loop with a lower
+    acceleration cap (2.5 m/s²: wheel spin). At ``mu`` 0.6 the LMPC, the
+    baseline every learned controller is judged against, leaves every track
+    (its transient lateral acceleration reaches the rear axle's grip), so
+    nothing could be compared; at ``mu`` 0.4 no controller completes the
+    built-in track.
 ``heavy-long``
     Mass +30 %, wheelbase +10 %, centre of gravity 10 % of the wheelbase
     further back (a second battery on a longer chassis); yaw inertia scaled
@@ -235,8 +238,8 @@ ZOO: dict[str, Callable[[], CarSpec]] = {
     ),
     "low-grip": lambda: _nominal(
         "low-grip",
-        "dusty floor: mu 0.6, acceleration capped at 2.5 m/s^2",
-        params=replace(f1tenth(), mu=0.6),
+        "dusty floor: mu 0.7, acceleration capped at 2.5 m/s^2",
+        params=replace(f1tenth(), mu=0.7),
         speed_loop=LagSpeedLoop(0.2, 2.5, 4.0),
     ),
     "heavy-long": lambda: _nominal(

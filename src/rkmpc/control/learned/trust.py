@@ -18,8 +18,13 @@ toward the LMPC's own command:
 * ``w = min(w_range, w_error)``.
 
 The thresholds are fractions of the training span of each feature, so they
-carry over between cars and scales. Every step with ``w < 1`` is counted, by
-the sign that caused it.
+carry over between cars and scales. A feature that hardly varied in training
+(the speed on an oval, held at the profile's top speed) would make ordinary
+noise look like a large error, so each span is at least ``min_span`` times
+the feature's largest magnitude in training: ``span_i = max(x_max_i - x_min_i,
+min_span * max(|x_min_i|, |x_max_i|))``. Features whose range holds zero (yaw
+rate, wheel angle) are not changed by it. Every step with ``w < 1`` is counted,
+by the sign that caused it.
 """
 
 from __future__ import annotations
@@ -50,6 +55,9 @@ class TrustConfig:
         Smoothed one-step prediction error (-) below which trust is full and above which it is 0.
     error_smoothing : float
         Weight ``a`` of the newest error in the exponential average, in (0, 1].
+    min_span : float
+        Floor (-) of each feature's span as a fraction of its largest magnitude in training,
+        in [0, 1]; 0 for the spread alone.
     """
 
     enabled: bool = True
@@ -58,6 +66,7 @@ class TrustConfig:
     error_low: float = 0.08
     error_high: float = 0.25
     error_smoothing: float = 0.2
+    min_span: float = 0.2
 
     def __post_init__(self) -> None:
         require_nonnegative(self, "range_margin", "error_low")
@@ -66,6 +75,8 @@ class TrustConfig:
             raise ParameterError("TrustConfig.error_high must exceed error_low")
         if self.error_smoothing > 1.0:
             raise ParameterError("TrustConfig.error_smoothing must be in (0, 1]")
+        if not 0.0 <= self.min_span <= 1.0:
+            raise ParameterError(f"TrustConfig.min_span must be in [0, 1], got {self.min_span!r}")
 
 
 class CorrectionTrust:
@@ -102,7 +113,8 @@ class CorrectionTrust:
         self._A, self._B, self._Cx = A, B, Cx
         self._x_min = np.asarray(x_min, dtype=float)
         self._x_max = np.asarray(x_max, dtype=float)
-        span = self._x_max - self._x_min
+        size = np.maximum(np.abs(self._x_min), np.abs(self._x_max))
+        span = np.maximum(self._x_max - self._x_min, config.min_span * size)
         self._inv_span = 1.0 / np.where(span > 1e-9, span, 1e-9)
         self.config = config
         self.reset()
