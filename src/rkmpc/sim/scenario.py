@@ -9,7 +9,7 @@ from __future__ import annotations
 import difflib
 import warnings
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -114,19 +114,6 @@ _FULLSIZE_LMPC = LMPCConfig(
 )
 
 
-def _fullsize_residual_settings() -> tuple[ResidualMPCConfig, ResidualMPCConfig]:
-    """``rkmpc``'s residual settings on the full-size car: scaled bounds, its own weights.
-
-    The weights were tuned on the built-in and oval tracks drawn at full scale (files 10x the
-    1:10 ones; none of the shared tracks): the scaled steering weight (141) held the correction
-    back (-20 % lateral error against the LMPC on the built-in track); position 4 and steering 17
-    gave -44 % there and -33 % on the oval, with the largest lateral error below the LMPC's on
-    both. ``rkmpc-paper`` keeps the scaled settings (not tuned).
-    """
-    rkmpc, paper = residual_settings(fullsize(), FULLSIZE_LIMITS)
-    return replace(rkmpc, position_weight=4.0, steer_weight=17.0), paper
-
-
 #: Vehicle presets by name.
 VEHICLES: dict[str, VehiclePreset] = {
     "f1tenth": VehiclePreset(
@@ -143,7 +130,7 @@ VEHICLES: dict[str, VehiclePreset] = {
         file_scale=1.0,
         # The look-ahead of pure pursuit grows with speed.
         controller_options={
-            **mpc_options(_FULLSIZE_LMPC, *_fullsize_residual_settings()),
+            **mpc_options(_FULLSIZE_LMPC, *residual_settings(fullsize(), FULLSIZE_LIMITS)),
             "pp": {"config": PurePursuitConfig(min_lookahead=3.0, lookahead_gain=0.8, max_lookahead=40.0)},
         },
     ),
