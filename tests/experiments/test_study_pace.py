@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -243,6 +244,29 @@ def test_learn_pace_pools_clean_laps_and_stops_at_an_unclean_one(synthetic):
     assert len(capped.iterations) == 2 and "max_iterations" in capped.stopped
     figure = plot_learn_pace(["4/3.5", "5/4"], [27.0, None], [True, False], [27.0, 24.0], [0.02, 0.1], "t")
     assert isinstance(figure, Figure)
+
+
+def test_the_cli_climbs_from_the_car_files_pace_and_records_the_file(synthetic, tmp_path):
+    from rkmpc.cli import main
+
+    race = Path(__file__).resolve().parents[2] / "configs" / "f1tenth-race.toml"
+    out = tmp_path / "pace"
+    argv = ["study", "pace", "--tracks", "builtin", "--controllers", "rkmpc", "--config", str(race)]
+    assert main([*argv, "--steps", "2", "--seed", "5", "--jobs", "1", "--out", str(out)]) == 0
+    data = json.loads((out / "study_pace.json").read_text())
+    assert data["ladder"] == [[6.0, 5.0], [6.5, 5.5], [7.0, 6.0]]  # from the file's own pace
+    car = data["config"]["car_config"]
+    assert car["file"] == str(race.resolve()) and car["limits"]["brake_decel"] == 3.75
+    assert car["training"]["seed"] == 5 == data["seed"]  # the flag's
+    # the synthetic rkmpc is clean up to 6 m/s^2: the file's pace, then the climb stops
+    assert [s["clean"] for s in data["runs"][0]["steps"]] == [True, False]
+    learn = tmp_path / "learn"
+    argv = ["learn-pace", "--config", str(race), "--start", "4:3.5", "--step", "1:0.5", "--steps", "2"]
+    assert main([*argv, "--laps", "3", "--out", str(learn)]) == 0
+    data = json.loads((learn / "learn_pace.json").read_text())
+    assert [it["pace"] for it in data["iterations"]] == [[4.0, 3.5], [5.0, 4.0], [6.0, 4.5]]
+    car = data["config"]["car_config"]
+    assert car["file"] == str(race.resolve()) and car["training"]["data_laps"] == 3 == data["config"]["laps"]
 
 
 # ---------------------------------------------------------------------------

@@ -169,7 +169,8 @@ def add_ladder_args(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--start",
         default=None,
-        help="first pace LATERAL:SPEED (default: the vehicle preset's, 4:3.5 for f1tenth)",
+        help="first pace LATERAL:SPEED (default: the car's own, the --config file's [limits], "
+        "else the vehicle preset's: 4:3.5 for f1tenth)",
     )
     parser.add_argument(
         "--step",
@@ -181,16 +182,20 @@ def add_ladder_args(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def ladder_from_args(args: argparse.Namespace) -> tuple[tuple[float, float], ...]:
-    """The ladder the ``add_ladder_args`` options ask for."""
-    from rkmpc.experiments.studies.pace_rules import check_ladder, pace_ladder
+def ladder_from_args(args: argparse.Namespace, car: CarConfig) -> tuple[tuple[float, float], ...]:
+    """The ladder the ``add_ladder_args`` options ask for, of ``car`` (:func:`car_config`).
+
+    Without ``--paces`` or ``--start`` it starts at the car's own pace (its limits: the
+    ``--config`` file's, else the preset's) and is capped at the car's top speed.
+    """
+    from rkmpc.experiments.studies.pace_rules import car_ladder, check_ladder
 
     if args.paces is not None:
         if args.start is not None or args.step is not None or args.steps is not None:
             raise ValueError("give either --paces or --start/--step/--steps, not both")
         return check_ladder("--paces", [_pace(t, "--paces") for t in args.paces.split(",") if t.strip()])
-    return pace_ladder(
-        args.vehicle,
+    return car_ladder(
+        car,
         start=None if args.start is None else _pace(args.start, "--start"),
         step=None if args.step is None else _pace(args.step, "--step"),
         steps=args.steps,

@@ -4,11 +4,10 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from rkmpc.cli.common import (
     CACHE_HELP,
-    VEHICLES,
     add_config_args,
     add_ladder_args,
     add_parallel_args,
@@ -19,7 +18,11 @@ from rkmpc.cli.common import (
     split_controllers,
 )
 
-__all__ = ["add_study_parser", "cmd_study"]
+if TYPE_CHECKING:
+    from rkmpc.experiments.studies.data_job import DataStudyConfig
+    from rkmpc.experiments.studies.pace_job import PaceStudyConfig
+
+__all__ = ["add_study_parser", "cmd_study", "data_study_config", "pace_study_config"]
 
 
 def add_study_parser(sub: Any) -> None:
@@ -68,12 +71,15 @@ def add_study_parser(sub: Any) -> None:
     data = kinds.add_parser("data", help="RKMPC against KMPC as the number of training samples grows")
     data.add_argument("--track", default="builtin")
     data.add_argument("--scale", type=float, default=None)
-    data.add_argument("--vehicle", default="f1tenth", choices=VEHICLES)
+    add_config_args(data)  # the seeds are --seeds, the data sizes --sizes
     data.add_argument("--sizes", default=",".join(str(n) for n in DEFAULT_SIZES), help="training samples")
     data.add_argument("--seeds", default="0,1,2")
     data.add_argument("--controllers", default="rkmpc,kmpc")
     data.add_argument(
-        "--epochs", type=at_least(1), default=None, help="training epochs (default: the models' own)"
+        "--epochs",
+        type=at_least(1),
+        default=None,
+        help="training epochs; else the --config file's (default: the models' own)",
     )
     add_parallel_args(data)
     pace = kinds.add_parser(
@@ -81,16 +87,24 @@ def add_study_parser(sub: Any) -> None:
     )
     pace.add_argument("--tracks", default="builtin", help="as for `study tracks`")
     pace.add_argument("--controllers", default=",".join(PACE_CONTROLLERS))
-    pace.add_argument("--seed", type=at_least(0), default=0)
+    pace.add_argument("--seed", type=at_least(0), default=None, help="else the --config file's (default: 0)")
     pace.add_argument("--scale", type=float, default=None)
-    pace.add_argument("--vehicle", default="f1tenth", choices=VEHICLES)
+    add_config_args(pace, pace=False)  # the pace is the ladder's, from the car's own
     add_ladder_args(pace)
     pace.add_argument(
-        "--data-laps", type=at_least(1), default=2, help="laps of data learned from at each pace"
+        "--data-laps",
+        type=at_least(1),
+        default=None,
+        help="laps of data learned from at each pace; else the --config file's (default: 2)",
     )
-    pace.add_argument("--kmpc-samples", type=int, default=50_000)
     pace.add_argument(
-        "--epochs", type=at_least(1), default=None, help="training epochs of the learned models"
+        "--kmpc-samples", type=at_least(1000), default=None, help="else the --config file's (default: 50000)"
+    )
+    pace.add_argument(
+        "--epochs",
+        type=at_least(1),
+        default=None,
+        help="training epochs of the learned models; else the --config file's",
     )
     pace.add_argument("--cache-dir", type=Path, default=None, help=CACHE_HELP)
     add_parallel_args(pace)
@@ -104,6 +118,44 @@ def _study_progress(console: Any) -> Any:
     return progress
 
 
+def pace_study_config(args: argparse.Namespace) -> PaceStudyConfig:
+    """The settings of ``study pace``: the options, then the car file, then the preset."""
+    from rkmpc.experiments.studies.common import expand_tracks
+    from rkmpc.experiments.studies.pace_job import PaceStudyConfig
+
+    car = car_config(args)
+    return PaceStudyConfig(
+        tracks=expand_tracks(args.tracks.split(",")),
+        controllers=tuple(split_controllers(args.controllers)),
+        paces=ladder_from_args(args, car),
+        seed=car.training.seed,
+        scale=args.scale,
+        vehicle=car.preset,
+        laps=car.training.data_laps,
+        epochs=car.training.epochs,
+        kmpc_samples=car.training.kmpc_samples,
+        cache_dir=None if args.cache_dir is None else str(args.cache_dir),
+        car_config=car,
+    )
+
+
+def data_study_config(args: argparse.Namespace) -> DataStudyConfig:
+    """The settings of ``study data``: the options, then the car file, then the preset."""
+    from rkmpc.experiments.studies.data_job import DataStudyConfig
+
+    car = car_config(args)  # the seeds are the study's (--seeds), the data sizes its own
+    return DataStudyConfig(
+        track=args.track,
+        scale=args.scale,
+        vehicle=car.preset,
+        sizes=ints(args.sizes, "--sizes"),
+        seeds=ints(args.seeds, "--seeds"),
+        controllers=tuple(split_controllers(args.controllers)),
+        epochs=car.training.epochs,
+        car_config=car,
+    )
+
+
 def cmd_study(args: argparse.Namespace) -> int:
     from rich.console import Console
 
@@ -113,9 +165,8 @@ def cmd_study(args: argparse.Namespace) -> int:
     from rkmpc.experiments.parallel import limit_threads
     from rkmpc.experiments.studies.cars import CarsStudyConfig, study_cars
     from rkmpc.experiments.studies.common import expand_tracks
-    from rkmpc.experiments.studies.data import DataStudyConfig, study_data
+    from rkmpc.experiments.studies.data import study_data
     from rkmpc.experiments.studies.pace import study_pace
-    from rkmpc.experiments.studies.pace_job import PaceStudyConfig
     from rkmpc.experiments.studies.tracks import TracksStudyConfig, study_tracks
 
     # The folder is checked before hours of runs, and made when they are done.
@@ -155,30 +206,9 @@ def cmd_study(args: argparse.Namespace) -> int:
             cars_config = CarsStudyConfig(cars=args.cars, tracks=config)
             result = study_cars(cars_config, **where, progress=_study_progress(console), say=console.print)
     elif args.study == "pace":
-        pace_config = PaceStudyConfig(
-            tracks=expand_tracks(args.tracks.split(",")),
-            controllers=tuple(split_controllers(args.controllers)),
-            paces=ladder_from_args(args),
-            seed=args.seed,
-            scale=args.scale,
-            vehicle=args.vehicle,
-            laps=args.data_laps,
-            epochs=args.epochs,
-            kmpc_samples=args.kmpc_samples,
-            cache_dir=None if args.cache_dir is None else str(args.cache_dir),
-        )
-        result = study_pace(pace_config, **where, progress=_study_progress(console))
+        result = study_pace(pace_study_config(args), **where, progress=_study_progress(console))
     else:
-        data_config = DataStudyConfig(
-            track=args.track,
-            scale=args.scale,
-            vehicle=args.vehicle,
-            sizes=ints(args.sizes, "--sizes"),
-            seeds=ints(args.seeds, "--seeds"),
-            controllers=tuple(split_controllers(args.controllers)),
-            epochs=args.epochs,
-        )
-        result = study_data(data_config, **where, progress=_study_progress(console))
+        result = study_data(data_study_config(args), **where, progress=_study_progress(console))
     stem = f"study_{args.study}"
     text = result.to_markdown()
     with output_folder(args.out, force=args.force, markers=(f"{stem}.json",)) as out:
@@ -193,6 +223,6 @@ def cmd_study(args: argparse.Namespace) -> int:
         figure = plot_data_study(result.series(), result.baseline.lateral_error_mean_m, title)
         save_figure(figure, args.out / "study_data.png")
     elif args.study == "pace":
-        title = f"pace study, seed {args.seed}: clean laps up the pace ladder"
+        title = f"pace study, seed {result.config.seed}: clean laps up the pace ladder"
         save_figure(plot_pace_study(result.series(), title), args.out / "study_pace.png")
     return 0

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Iterable
+from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
@@ -12,10 +13,12 @@ from rkmpc.core.jsonutil import to_json_ready
 from rkmpc.core.validation import is_integer, is_positive_number
 from rkmpc.core.versions import versions
 from rkmpc.experiments.parallel import BACKENDS
+from rkmpc.sim.carfile import CarConfig
 from rkmpc.sim.scenario import VEHICLES
 from rkmpc.track.builtin import list_builtin_tracks
 
 __all__ = [
+    "check_car_config",
     "check_parallel",
     "check_scale_vehicle",
     "check_track",
@@ -23,6 +26,7 @@ __all__ = [
     "expand_tracks",
     "int_tuple",
     "json_object",
+    "settings_json",
     "str_tuple",
     "study_versions",
     "track_label",
@@ -98,6 +102,20 @@ def check_scale_vehicle(scale: Any, vehicle: Any) -> None:
         raise ParameterError(f"vehicle must be one of {sorted(VEHICLES)}, got {vehicle!r}")
 
 
+def check_car_config(name: str, car: Any, vehicle: str) -> CarConfig | None:
+    """``car``, checked: a :class:`CarConfig` of the ``vehicle`` preset, or None.
+
+    ParameterError naming ``name`` for anything else.
+    """
+    if car is None:
+        return None
+    if not isinstance(car, CarConfig):
+        raise ParameterError(f"{name} must be a CarConfig or None, got {car!r}")
+    if car.preset != vehicle:
+        raise ParameterError(f"{name} is a {car.preset!r} car but vehicle is {vehicle!r}")
+    return car
+
+
 def check_parallel(n_jobs: int, backend: str) -> None:
     """ParameterError for an unknown backend or a job count that is neither positive nor -1."""
     if backend not in BACKENDS:
@@ -129,6 +147,17 @@ def expand_tracks(items: Iterable[str | Path]) -> tuple[str, ...]:
 def study_versions() -> dict[str, str]:
     """:func:`rkmpc.core.versions.versions` plus the learning and parallel packages."""
     return versions(extra=("torch", "joblib", "dask", "distributed", "ray"))
+
+
+def settings_json(settings: Any, car: CarConfig | None) -> dict[str, Any]:
+    """A study's settings (a dataclass) for its result file, ``car_config`` written out whole.
+
+    The car is recorded as its effective configuration (:meth:`CarConfig.to_json`: every value,
+    the file and its hash; None when the study was given none).
+    """
+    out = asdict(settings)
+    out["car_config"] = None if car is None else car.to_json()
+    return out
 
 
 def json_object(out: dict[str, Any]) -> dict[str, Any]:

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from typing import Any
 
 from rkmpc.analysis.metrics import LapMetrics
@@ -23,11 +23,11 @@ from rkmpc.experiments.runs import run_controller
 from rkmpc.experiments.studies.common import (
     check_parallel,
     json_object,
+    settings_json,
     study_versions,
 )
 from rkmpc.experiments.studies.data_job import DEFAULT_SIZES, DataStudyConfig, data_job
 from rkmpc.sim.run import RunSpec
-from rkmpc.sim.scenario import load_scenario
 
 __all__ = ["DEFAULT_SIZES", "DataStudyConfig", "DataStudyResult", "study_data"]
 
@@ -105,7 +105,7 @@ class DataStudyResult:
     def to_json(self) -> dict[str, Any]:
         out = {
             "study": "data",
-            "config": asdict(self.config),
+            "config": settings_json(self.config, self.config.car_config),
             "track": self.config.track,
             "sizes": list(self.config.sizes),
             "seeds": list(self.config.seeds),
@@ -216,7 +216,7 @@ def study_data(
         jobs, n_jobs=n_jobs, backend=backend, address=address, on_error="record", progress=progress
     )
     wall = time.perf_counter() - t0
-    scenario = load_scenario(cfg.track, scale=cfg.scale, vehicle=cfg.vehicle)
+    scenario = cfg.scenario()
     _, baseline = run_controller(scenario, RunSpec("lmpc"))
     records = []
     for (c, size, seed), out in zip(keys, outcomes, strict=True):

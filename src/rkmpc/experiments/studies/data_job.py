@@ -5,13 +5,14 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from typing import Any
 
 from rkmpc.core.errors import ParameterError
 from rkmpc.core.validation import is_integer, is_positive_number
 from rkmpc.experiments.runs import run_controller
 from rkmpc.experiments.studies.common import (
+    check_car_config,
     check_scale_vehicle,
     check_track,
     int_tuple,
@@ -21,6 +22,7 @@ from rkmpc.learning.data.augmentation import AugmentConfig, valid_origins
 from rkmpc.learning.data.dataset import TransitionDataset
 from rkmpc.learning.pipeline import TrainConfig, train_model
 from rkmpc.learning.recipes import recipe_for
+from rkmpc.sim.carfile import CarConfig
 from rkmpc.sim.collect import collect, collect_excitation
 from rkmpc.sim.run import RunSpec
 from rkmpc.sim.scenario import Scenario, load_scenario
@@ -66,6 +68,11 @@ class DataStudyConfig:
         Range of the LMPC laps collected.
     epochs : int or None
         Training epochs (None: the recipes' default, 100).
+    car_config : CarConfig or None
+        The car as a car file set it up (:mod:`rkmpc.sim.carfile`), a car of the ``vehicle``
+        preset: its parameters, plant, limits and controllers' settings replace the preset's. The
+        study sizes its own data and takes ``seeds`` and ``epochs`` above: the copy kept here takes
+        ``epochs``, and the result records it.
     """
 
     track: str = "builtin"
@@ -80,11 +87,13 @@ class DataStudyConfig:
     min_laps: int = 1
     max_laps: int = 40
     epochs: int | None = None
+    car_config: CarConfig | None = None
 
     def __post_init__(self) -> None:
         check_track(str(self.track))
         object.__setattr__(self, "track", str(self.track))
         check_scale_vehicle(self.scale, self.vehicle)
+        car = check_car_config("DataStudyConfig.car_config", self.car_config, self.vehicle)
         object.__setattr__(self, "sizes", int_tuple("DataStudyConfig.sizes", self.sizes, minimum=1))
         object.__setattr__(self, "seeds", int_tuple("DataStudyConfig.seeds", self.seeds, minimum=0))
         controllers = str_tuple("DataStudyConfig.controllers", self.controllers)
@@ -113,6 +122,23 @@ class DataStudyConfig:
                 raise ParameterError(
                     f"DataStudyConfig.sizes: {size} is below one window of n_points = {self.n_points}"
                 )
+        if car is not None:  # the copy kept is the one that runs: these epochs
+            training = replace(car.training, epochs=self.epochs)
+            object.__setattr__(self, "car_config", replace(car, training=training))
+
+    def scenario(self) -> Scenario:
+        """The track and the car: the ``vehicle`` preset, or ``car_config``'s."""
+        car = self.car_config
+        if car is None:
+            return load_scenario(self.track, scale=self.scale, vehicle=self.vehicle)
+        return load_scenario(
+            self.track,
+            scale=self.scale,
+            vehicle=self.vehicle,
+            limits=car.limits,
+            car=car.car,
+            preset=car.vehicle_preset(),
+        )
 
 
 def _lmpc_data(
@@ -152,7 +178,7 @@ def data_job(cfg: DataStudyConfig, controller: str, size: int, seed: int) -> dic
     if recipe is None or recipe.learner != "koopman":
         raise ParameterError(f"the data study trains Koopman recipes only, not {controller!r}")
     t0 = time.perf_counter()
-    scenario = load_scenario(cfg.track, scale=cfg.scale, vehicle=cfg.vehicle)
+    scenario = cfg.scenario()
     windows = max(1, round(size / cfg.n_points))
     record: dict[str, Any] = {"controller": controller, "size": size, "seed": seed}
     if recipe.data == "track":

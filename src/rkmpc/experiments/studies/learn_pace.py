@@ -11,7 +11,7 @@ faster. The loop stops at the first unclean laps, at the top of the ladder or af
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 from rkmpc.analysis.metrics import LapMetrics, lap_metrics
@@ -20,16 +20,26 @@ from rkmpc.core.errors import ParameterError
 from rkmpc.core.validation import is_integer
 from rkmpc.experiments.cache import ModelCache
 from rkmpc.experiments.studies.common import (
+    check_car_config,
     check_scale_vehicle,
     check_track,
     json_object,
+    settings_json,
     study_versions,
     track_label,
 )
 from rkmpc.experiments.studies.pace_job import PaceStudyConfig, train_on
-from rkmpc.experiments.studies.pace_rules import Pace, check_ladder, pace_label, pace_ladder, run_verdict
+from rkmpc.experiments.studies.pace_rules import (
+    Pace,
+    car_ladder,
+    check_ladder,
+    pace_label,
+    pace_ladder,
+    run_verdict,
+)
 from rkmpc.learning.data.dataset import TransitionDataset
 from rkmpc.learning.recipes import recipe_for
+from rkmpc.sim.carfile import CarConfig
 from rkmpc.sim.collect import record
 from rkmpc.sim.run import RunSpec
 
@@ -48,7 +58,9 @@ class LearnPaceConfig:
         The learned controller (a recipe learning from laps of the track: ``rkmpc``,
         ``rkmpc-paper``, ``lmpc-id``).
     paces : sequence of (float, float) or None
-        The ladder; its first pace is the safe one the LMPC starts at. None: the vehicle's default.
+        The ladder; its first pace is the safe one the LMPC starts at. None: the vehicle's default,
+        or with ``car_config`` the car's (from its own pace:
+        :func:`~rkmpc.experiments.studies.pace_rules.car_ladder`).
     seed : int
         Seed of the runs and the training.
     scale : float or None
@@ -65,6 +77,10 @@ class LearnPaceConfig:
         Model cache folder (default when None).
     use_cache : bool
         Read and write trained models in the cache.
+    car_config : CarConfig or None
+        The car as a car file set it up, a car of the ``vehicle`` preset (as for
+        :class:`~rkmpc.experiments.studies.pace_job.PaceStudyConfig`); the copy kept here takes
+        the seed, laps and epochs above, and the result records it.
     """
 
     track: str = "builtin"
@@ -78,6 +94,7 @@ class LearnPaceConfig:
     max_iterations: int | None = None
     cache_dir: str | None = None
     use_cache: bool = True
+    car_config: CarConfig | None = None
 
     def __post_init__(self) -> None:
         check_track(str(self.track))
@@ -89,11 +106,11 @@ class LearnPaceConfig:
                 f"lmpc-id), got {self.controller!r}"
             )
         check_scale_vehicle(self.scale, self.vehicle)
-        paces = (
-            pace_ladder(self.vehicle)
-            if self.paces is None
-            else check_ladder("LearnPaceConfig.paces", self.paces)
-        )
+        car = check_car_config("LearnPaceConfig.car_config", self.car_config, self.vehicle)
+        if self.paces is not None:
+            paces = check_ladder("LearnPaceConfig.paces", self.paces)
+        else:
+            paces = pace_ladder(self.vehicle) if car is None else car_ladder(car)
         if len(paces) < 2:
             raise ParameterError("LearnPaceConfig.paces: need a safe pace and at least one faster")
         object.__setattr__(self, "paces", paces)
@@ -106,9 +123,13 @@ class LearnPaceConfig:
             value = getattr(self, name)
             if value is not None and not is_integer(value, 1):
                 raise ParameterError(f"LearnPaceConfig.{name} must be None or an integer >= 1, got {value!r}")
+        if car is not None:  # the copy kept is the one that runs: these training settings
+            training = replace(car.training, epochs=self.epochs, seed=self.seed, data_laps=self.laps)
+            object.__setattr__(self, "car_config", replace(car, training=training))
 
     def study(self) -> PaceStudyConfig:
         """The same settings as a pace-study configuration (scenarios, training)."""
+        car = self.car_config
         return PaceStudyConfig(
             tracks=(self.track,),
             controllers=(self.controller,),
@@ -120,6 +141,8 @@ class LearnPaceConfig:
             epochs=self.epochs,
             cache_dir=self.cache_dir,
             use_cache=self.use_cache,
+            kmpc_samples=PaceStudyConfig.kmpc_samples if car is None else car.training.kmpc_samples,
+            car_config=car,
         )
 
 
@@ -160,7 +183,7 @@ class LearnPaceResult:
     def to_json(self) -> dict[str, Any]:
         out = {
             "study": "learn-pace",
-            "config": asdict(self.config),
+            "config": settings_json(self.config, self.config.car_config),
             "track": track_label(self.config.track),
             "seed": self.config.seed,
             "versions": self.versions,

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from typing import Any
 
 from rkmpc.analysis.statistics import stats
@@ -21,7 +21,13 @@ from rkmpc.analysis.study_plots import PaceSeries
 from rkmpc.analysis.tables import fmt, fmt_stats, markdown
 from rkmpc.core.errors import ParameterError
 from rkmpc.experiments.parallel import Job, JobOutcome, run_jobs
-from rkmpc.experiments.studies.common import check_parallel, json_object, study_versions, track_label
+from rkmpc.experiments.studies.common import (
+    check_parallel,
+    json_object,
+    settings_json,
+    study_versions,
+    track_label,
+)
 from rkmpc.experiments.studies.pace_job import PaceStep, PaceStudyConfig, job_name, pace_job
 from rkmpc.experiments.studies.pace_rules import MAX_FALLBACK_SHARE, pace_label
 
@@ -129,7 +135,7 @@ class PaceStudyResult:
     def to_json(self) -> dict[str, Any]:
         out = {
             "study": "pace",
-            "config": asdict(self.config),
+            "config": settings_json(self.config, self.config.car_config),
             "ladder": [list(p) for p in self.config.ladder],
             "max_fallback_share": MAX_FALLBACK_SHARE,
             "seed": self.config.seed,

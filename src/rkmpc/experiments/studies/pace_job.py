@@ -16,7 +16,7 @@ clean (higher paces are not tried). Every step records which data its model lear
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 from rkmpc.analysis.metrics import LapMetrics
@@ -26,6 +26,7 @@ from rkmpc.experiments.cache import ModelCache
 from rkmpc.experiments.models import train_excitation_model, train_track_model
 from rkmpc.experiments.runs import run_controller
 from rkmpc.experiments.studies.common import (
+    check_car_config,
     check_scale_vehicle,
     controller_names,
     track_label,
@@ -33,6 +34,7 @@ from rkmpc.experiments.studies.common import (
 )
 from rkmpc.experiments.studies.pace_rules import (
     Pace,
+    car_ladder,
     check_ladder,
     data_verdict,
     pace_ladder,
@@ -41,6 +43,7 @@ from rkmpc.experiments.studies.pace_rules import (
 from rkmpc.learning.data.dataset import TransitionDataset
 from rkmpc.learning.identification import identify
 from rkmpc.learning.recipes import Recipe, recipe_for
+from rkmpc.sim.carfile import CarConfig, TrainingSettings
 from rkmpc.sim.collect import record
 from rkmpc.sim.run import RunSpec
 from rkmpc.sim.scenario import Scenario, load_scenario, vehicle_preset
@@ -71,13 +74,14 @@ class PaceStudyConfig:
         Controllers that climb the ladder; a comma-separated string is accepted.
     paces : sequence of (float, float) or None
         The ladder, ``(lateral_accel, max_speed)`` increasing; None: the vehicle's default
-        (:func:`rkmpc.experiments.studies.pace_rules.pace_ladder`).
+        (:func:`rkmpc.experiments.studies.pace_rules.pace_ladder`), or with ``car_config`` the
+        car's (:func:`~rkmpc.experiments.studies.pace_rules.car_ladder`: from the car's own pace).
     seed : int
         Seed of the data, the training and the runs.
     scale : float or None
         Track scale (default: the vehicle's).
     vehicle : str
-        Vehicle preset; its speed limits are scaled to each pace.
+        Vehicle preset; its speed limits (or ``car_config``'s) are scaled to each pace.
     laps : int
         Laps of data the learned controllers learn from at each pace.
     run_laps : int
@@ -90,6 +94,11 @@ class PaceStudyConfig:
         Model cache folder (default when None).
     use_cache : bool
         Read and write trained models in the cache.
+    car_config : CarConfig or None
+        The car as a car file set it up (:mod:`rkmpc.sim.carfile`), a car of the ``vehicle``
+        preset: its parameters, plant, controllers' settings and limits (scaled to each pace)
+        replace the preset's. The fields above stay authoritative (seed, laps, epochs, samples):
+        the copy kept here is brought in line with them, and the result records it.
     """
 
     tracks: Sequence[str]
@@ -104,17 +113,18 @@ class PaceStudyConfig:
     kmpc_samples: int = 50_000
     cache_dir: str | None = None
     use_cache: bool = True
+    car_config: CarConfig | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "tracks", track_specs("PaceStudyConfig.tracks", self.tracks))
         controllers = controller_names("PaceStudyConfig.controllers", self.controllers)
         object.__setattr__(self, "controllers", controllers)
         check_scale_vehicle(self.scale, self.vehicle)
-        ladder = (
-            pace_ladder(self.vehicle)
-            if self.paces is None
-            else check_ladder("PaceStudyConfig.paces", self.paces)
-        )
+        car = check_car_config("PaceStudyConfig.car_config", self.car_config, self.vehicle)
+        if self.paces is not None:
+            ladder = check_ladder("PaceStudyConfig.paces", self.paces)
+        else:
+            ladder = pace_ladder(self.vehicle) if car is None else car_ladder(car)
         object.__setattr__(self, "paces", ladder)
         for name, minimum in (("seed", 0), ("laps", 1), ("run_laps", 1), ("kmpc_samples", 1000)):
             if not is_integer(getattr(self, name), minimum):
@@ -125,6 +135,11 @@ class PaceStudyConfig:
             raise ParameterError(
                 f"PaceStudyConfig.epochs must be None or an integer >= 1, got {self.epochs!r}"
             )
+        if car is not None:  # the copy kept is the one that runs: the study's training settings
+            training = TrainingSettings(
+                epochs=self.epochs, seed=self.seed, data_laps=self.laps, kmpc_samples=self.kmpc_samples
+            )
+            object.__setattr__(self, "car_config", replace(car, training=training))
 
     @property
     def ladder(self) -> tuple[Pace, ...]:
@@ -133,9 +148,23 @@ class PaceStudyConfig:
         return paces
 
     def scenario(self, track: str, pace: Pace) -> Scenario:
-        """The track and car at ``pace``: the preset's limits at that lateral limit and top speed."""
-        limits = vehicle_preset(self.vehicle).limits.at_pace(*pace)
-        return load_scenario(track, scale=self.scale, vehicle=self.vehicle, limits=limits)
+        """The track and car at ``pace``: the car's limits at that lateral limit and top speed.
+
+        The car is the ``vehicle`` preset, or ``car_config``'s (its parameters, plant and
+        controllers' settings; its limits are the ones scaled).
+        """
+        car = self.car_config
+        if car is None:
+            limits = vehicle_preset(self.vehicle).limits.at_pace(*pace)
+            return load_scenario(track, scale=self.scale, vehicle=self.vehicle, limits=limits)
+        return load_scenario(
+            track,
+            scale=self.scale,
+            vehicle=self.vehicle,
+            limits=car.limits.at_pace(*pace),
+            car=car.car,
+            preset=car.vehicle_preset(),
+        )
 
 
 @dataclass(frozen=True)

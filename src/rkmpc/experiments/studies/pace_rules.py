@@ -17,17 +17,21 @@ from __future__ import annotations
 import itertools
 import math
 from collections.abc import Iterable, Mapping
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from rkmpc.core.errors import ParameterError
 from rkmpc.core.validation import is_integer
 from rkmpc.sim.closed_loop import SimResult
 from rkmpc.sim.scenario import vehicle_preset
 
+if TYPE_CHECKING:
+    from rkmpc.sim.carfile import CarConfig
+
 __all__ = [
     "DEFAULT_LADDERS",
     "MAX_FALLBACK_SHARE",
     "Pace",
+    "car_ladder",
     "check_ladder",
     "data_verdict",
     "lap_verdict",
@@ -64,11 +68,13 @@ def pace_ladder(
     start: Pace | None = None,
     step: Pace | None = None,
     steps: int | None = None,
+    top_speed: float | None = None,
 ) -> tuple[Pace, ...]:
     """``start``, then ``steps`` paces each ``step`` above the last; the top speed capped at the car's.
 
-    Each argument left None takes the vehicle's default (:data:`DEFAULT_LADDERS`). Paces that the
-    cap makes equal to the one below are dropped.
+    Each of ``start``, ``step``, ``steps`` left None takes the vehicle's default
+    (:data:`DEFAULT_LADDERS`); ``top_speed`` None is the preset car's (``drive.max_speed``). Paces
+    that the cap makes equal to the one below are dropped.
     """
     if vehicle not in DEFAULT_LADDERS:
         raise ParameterError(f"pace_ladder: no default ladder for vehicle {vehicle!r}; give the paces")
@@ -80,13 +86,40 @@ def pace_ladder(
         raise ParameterError(f"pace_ladder: steps must be an integer >= 0, got {n!r}")
     if not (math.isfinite(da) and math.isfinite(dv) and da >= 0 and dv >= 0 and da + dv > 0):
         raise ParameterError(f"pace_ladder: step must be two non-negative numbers, not both 0, got {step!r}")
-    top = vehicle_preset(vehicle).params().drive.max_speed
+    top = vehicle_preset(vehicle).params().drive.max_speed if top_speed is None else top_speed
+    if not (math.isfinite(top) and top > 0):
+        raise ParameterError(f"pace_ladder: top_speed must be finite and > 0, got {top_speed!r}")
     out: list[Pace] = []
     for i in range(int(n) + 1):
         pace = (round(a0 + i * da, 6), round(min(v0 + i * dv, top), 6))
         if not out or pace != out[-1]:
             out.append(pace)
     return check_ladder("pace_ladder", out)
+
+
+def car_ladder(
+    car: CarConfig,
+    *,
+    start: Pace | None = None,
+    step: Pace | None = None,
+    steps: int | None = None,
+) -> tuple[Pace, ...]:
+    """The ladder of a car set up by a car file (:class:`rkmpc.sim.carfile.CarConfig`).
+
+    As for the presets, the ladder starts at the car's own pace: its limits' ``lateral_accel`` and
+    ``max_speed`` (a file's ``[limits]``, else the preset's) unless ``start`` is given, and it is
+    capped at the car's top speed (its ``vehicle.drive.max_speed``); ``step`` and ``steps`` default
+    to the preset's (:data:`DEFAULT_LADDERS`). For a preset as it is
+    (:meth:`CarConfig.from_preset`) this is :func:`pace_ladder` of the preset.
+    """
+    own = (car.limits.lateral_accel, car.limits.max_speed)
+    return pace_ladder(
+        car.preset,
+        start=own if start is None else start,
+        step=step,
+        steps=steps,
+        top_speed=car.vehicle.drive.max_speed,
+    )
 
 
 def _pace(name: str, value: Any) -> Pace:
