@@ -233,7 +233,6 @@ def _cmd_collect(args: argparse.Namespace) -> int:
     from rkmpc.sim.collect import collect, collect_excitation
     from rkmpc.sim.faults import DEFAULT_NOISE
     from rkmpc.sim.log import StepLog
-    from rkmpc.sim.scenario import load_scenario
 
     check_output_file(args.out)
     if args.from_bag is not None:
@@ -243,14 +242,7 @@ def _cmd_collect(args: argparse.Namespace) -> int:
         data = TransitionDataset.from_log(log, metadata={**log.metadata, "source": str(args.from_log)})
     else:
         car = car_config(args)
-        scenario = load_scenario(
-            args.track,
-            raceline=args.raceline,
-            scale=args.scale,
-            vehicle=car.preset,
-            car=car.car,
-            preset=car.vehicle_preset(),
-        )
+        scenario = car.scenario(args.track, scale=args.scale, raceline=args.raceline)
         seed = car.training.seed
         if args.excitation:
             data = collect_excitation(scenario, n_samples=args.excitation, seed=seed)

@@ -53,7 +53,7 @@ from rkmpc.core.errors import InputFileError, ParameterError
 from rkmpc.core.jsonutil import to_json_ready
 from rkmpc.core.settings import build_dataclass, check_keys, check_value
 from rkmpc.core.validation import is_integer
-from rkmpc.sim.scenario import VEHICLES, VehiclePreset, mpc_options, vehicle_preset
+from rkmpc.sim.scenario import VEHICLES, Scenario, VehiclePreset, load_scenario, mpc_options, vehicle_preset
 from rkmpc.track.speed_profile import SpeedLimits
 from rkmpc.vehicle.params import VehicleParams
 from rkmpc.vehicle.zoo import get_car
@@ -196,6 +196,28 @@ class CarConfig:
             limits=self.limits,
             file_scale=base.file_scale,
             controller_options={**base.controller_options, **self.controllers.options()},
+        )
+
+    def scenario(
+        self,
+        track: str | Path,
+        *,
+        scale: float | None = None,
+        raceline: str | Path | None = None,
+        limits: SpeedLimits | None = None,
+    ) -> Scenario:
+        """This car on ``track`` (:func:`rkmpc.sim.scenario.load_scenario`): its preset, plant and limits.
+
+        ``limits`` replaces the car's (a study's pace); ``scale`` and ``raceline`` as for the loader.
+        """
+        return load_scenario(
+            track,
+            raceline=raceline,
+            scale=scale,
+            vehicle=self.preset,
+            car=self.car,
+            limits=self.limits if limits is None else limits,
+            preset=self.vehicle_preset(),
         )
 
     def at_pace(self, lateral_accel: float | None = None, max_speed: float | None = None) -> CarConfig:

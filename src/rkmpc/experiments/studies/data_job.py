@@ -131,14 +131,7 @@ class DataStudyConfig:
         car = self.car_config
         if car is None:
             return load_scenario(self.track, scale=self.scale, vehicle=self.vehicle)
-        return load_scenario(
-            self.track,
-            scale=self.scale,
-            vehicle=self.vehicle,
-            limits=car.limits,
-            car=car.car,
-            preset=car.vehicle_preset(),
-        )
+        return car.scenario(self.track, scale=self.scale)
 
 
 def _lmpc_data(

@@ -157,14 +157,7 @@ class PaceStudyConfig:
         if car is None:
             limits = vehicle_preset(self.vehicle).limits.at_pace(*pace)
             return load_scenario(track, scale=self.scale, vehicle=self.vehicle, limits=limits)
-        return load_scenario(
-            track,
-            scale=self.scale,
-            vehicle=self.vehicle,
-            limits=car.limits.at_pace(*pace),
-            car=car.car,
-            preset=car.vehicle_preset(),
-        )
+        return car.scenario(track, scale=self.scale, limits=car.limits.at_pace(*pace))
 
 
 @dataclass(frozen=True)
