@@ -113,7 +113,6 @@ _FULLSIZE_LMPC = LMPCConfig(
     steer_weight=1000.0, steer_rate_weight=1000.0, heading_weight=20.0, speed_lead=0.5
 )
 
-
 #: Vehicle presets by name.
 VEHICLES: dict[str, VehiclePreset] = {
     "f1tenth": VehiclePreset(
