@@ -87,6 +87,12 @@ class ResidualMPCConfig:
         Weight of the squared change of the steering correction from one step to the next
         (the first against the correction applied last), so the correction does not make the
         commanded wheel angle move faster than the LMPC's; 0 for none.
+    lateral_accel_weight : float
+        Weight (s^4/m^2) of the squared lateral acceleration a steering correction adds at the
+        speed the LMPC plans for that step, ``(v_k**2 / L * ddelta_k)**2`` (``rkmpc`` only; 0 for
+        none). A wheel-angle change moves the car by ``v**2 / L`` times as much at speed ``v``,
+        so a fixed ``steer_weight`` that lets the correction act in slow corners lets it
+        oscillate on fast straights; this term makes the correction's price grow with ``v**4``.
     trust : TrustConfig
         Out-of-distribution guard: how the correction fades toward the LMPC's command when the
         state leaves the model's training range or its predictions go wrong
@@ -105,12 +111,19 @@ class ResidualMPCConfig:
     solver: str = "daqp"
     max_iterations: int = 200
     steer_rate_weight: float = 0.0
+    lateral_accel_weight: float = 0.0
     trust: TrustConfig = field(default_factory=TrustConfig)
     adaptation: AdaptationConfig = field(default_factory=AdaptationConfig)
 
     def __post_init__(self) -> None:
         require_nonnegative(
-            self, "position_weight", "heading_weight", "speed_weight", "steer_weight", "steer_rate_weight"
+            self,
+            "position_weight",
+            "heading_weight",
+            "speed_weight",
+            "steer_weight",
+            "steer_rate_weight",
+            "lateral_accel_weight",
         )
         if self.speed_weight <= 0 or self.steer_weight <= 0:
             raise ParameterError("ResidualMPCConfig: speed_weight and steer_weight must be > 0")
@@ -123,7 +136,9 @@ class ResidualMPCConfig:
         The cost keeps its balance when every term grows like the squared position error
         (``length**2``): wheel angles on a track of the car's size are alike, so the weight of the
         steering correction grows with ``length**2``; speed errors grow with ``speed``, so the weight
-        of the speed correction grows with ``(length / speed)**2``. The speed correction's bound grows
+        of the speed correction grows with ``(length / speed)**2``, and the weight of the lateral
+        acceleration a steering correction adds (which grows with ``speed**2 / length``) with
+        ``(length**2 / speed**2)**2``. The speed correction's bound grows
         with ``speed``; the steering bound stays (wheel angles are alike). Position and heading
         weights, solver and iteration budget stay.
 
@@ -147,6 +162,7 @@ class ResidualMPCConfig:
             self,
             speed_weight=self.speed_weight * (k / v) ** 2,
             steer_weight=self.steer_weight * k**2,
+            lateral_accel_weight=self.lateral_accel_weight * (k / v) ** 4,
             max_speed_correction=self.max_speed_correction * v,
         )
 
@@ -318,6 +334,9 @@ class ResidualKoopmanMPC(_ResidualBase):
         # The last step's lifted state, command and pose (for adaptation).
         self._last: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self._pose = np.zeros(3)
+        # Diagonal entries of the residual Hessian that weigh the steering corrections.
+        steer = 2 * np.arange(self.horizon) + 1
+        self._steer_diag = (steer, steer)
 
     def _reset(self) -> None:
         super()._reset()
@@ -377,6 +396,9 @@ class ResidualKoopmanMPC(_ResidualBase):
         GtQ = (self._q[:, None] * GM).T
         H = GtQ @ GM
         H += self._R
+        if self.config.lateral_accel_weight > 0.0:
+            gain = pred.plan[:, 0] ** 2 / self.vehicle.wheelbase  # (m/s^2)/rad at each planned speed
+            H[self._steer_diag] += self.config.lateral_accel_weight * gain**2
         H *= 2.0
         f = GtQ @ e0
         f *= 2.0
