@@ -13,7 +13,8 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from rkmpc.control.learned.rkmpc import PaperResidualKoopmanMPC, ResidualKoopmanMPC, ResidualMPCConfig
+from rkmpc.control.learned.residual_config import ResidualMPCConfig
+from rkmpc.control.learned.rkmpc import PaperResidualKoopmanMPC, ResidualKoopmanMPC
 from rkmpc.control.linear.lmpc import LMPCConfig
 from rkmpc.control.pure_pursuit import PurePursuitConfig
 from rkmpc.learning.contract import Provenance
