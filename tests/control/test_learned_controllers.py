@@ -1,5 +1,6 @@
 import math
 from dataclasses import replace
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -7,8 +8,9 @@ import pytest
 from rkmpc.analysis.metrics import lap_metrics
 from rkmpc.control import Observation, make_controller
 from rkmpc.control.learned.adaptation import AdaptationConfig
-from rkmpc.control.learned.rkmpc import ResidualKoopmanMPC
+from rkmpc.control.learned.rkmpc import PaperResidualKoopmanMPC, ResidualKoopmanMPC
 from rkmpc.control.learned.trust import TrustConfig
+from rkmpc.core.errors import ParameterError
 from rkmpc.experiments.runs import run_controller
 from rkmpc.learning.data.augmentation import AugmentConfig
 from rkmpc.learning.identification import identify
@@ -236,3 +238,47 @@ def test_steering_rate_weight_smooths_the_correction(builtin_scenario, learned):
             plant.step(command, sc.dt)
         changes.append(float(np.mean(np.abs(np.diff(corrections)))))
     assert changes[1] < changes[0]
+
+
+def test_lateral_acceleration_weight_prices_steering_by_the_planned_speed(builtin_scenario, learned):
+    # The residual Hessian gains 2 * w * (v_k**2 / L)**2 on the k-th steering correction, nothing else.
+    sc = builtin_scenario
+    p = sc.reference.path.position(4.0)
+    obs = Observation(
+        x=float(p[0]),
+        y=float(p[1]),
+        yaw=float(sc.reference.path.heading(4.0)),
+        speed=2.0,
+        yaw_rate=0.0,
+        steer_angle=0.0,
+    )
+    hessians, plans = [], []
+    for weight in (0.0, 0.003):
+        cfg = replace(ResidualKoopmanMPC.default_config, lateral_accel_weight=weight)
+        ctrl = ResidualKoopmanMPC(sc.reference, sc.vehicle, learned["rkmpc"], config=cfg)
+        ctrl.lmpc.step(obs)
+        pred = ctrl.lmpc.last_prediction
+        assert pred is not None
+        H, _ = ctrl._residual_qp(obs, pred, pred.plan.reshape(-1))
+        hessians.append(H.copy())
+        plans.append(pred.plan.copy())
+    np.testing.assert_allclose(plans[0], plans[1])
+    extra = hessians[1] - hessians[0]
+    gain = plans[0][:, 0] ** 2 / sc.vehicle.wheelbase
+    np.testing.assert_allclose(np.diag(extra)[1::2], 2.0 * 0.003 * gain**2, rtol=1e-9)
+    np.testing.assert_allclose(extra - np.diag(np.diag(extra)), 0.0, atol=1e-12)
+    np.testing.assert_allclose(np.diag(extra)[0::2], 0.0, atol=1e-12)
+    assert gain.max() > 5.0  # the planned speeds make the term matter
+
+
+def test_lateral_acceleration_weight_must_not_be_negative():
+    with pytest.raises(ParameterError, match="lateral_accel_weight"):
+        replace(ResidualKoopmanMPC.default_config, lateral_accel_weight=-1.0)
+
+
+def test_rkmpc_paper_refuses_a_speed_priced_steering_weight(builtin_scenario):
+    sc = builtin_scenario
+    cfg = replace(PaperResidualKoopmanMPC.default_config, lateral_accel_weight=0.01)
+    model = SimpleNamespace(A_=np.eye(3), B_=np.zeros((3, 2)), C_=np.eye(3), lift=np.asarray)
+    with pytest.raises(ParameterError, match="rkmpc-paper: lateral_accel_weight"):
+        PaperResidualKoopmanMPC(sc.reference, sc.vehicle, model, config=cfg)

@@ -9,7 +9,7 @@ import pytest
 
 from rkmpc.control import make_controller
 from rkmpc.control.guard import SpeedFloor
-from rkmpc.control.learned.rkmpc import ResidualMPCConfig
+from rkmpc.control.learned.residual_config import ResidualMPCConfig
 from rkmpc.control.linear.lmpc import LMPCConfig
 from rkmpc.control.nonlinear.nlp import NMPCConfig
 from rkmpc.core.errors import ParameterError

@@ -2,18 +2,27 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
 from rkmpc.control import make_controller
-from rkmpc.control.learned.rkmpc import PaperResidualKoopmanMPC, ResidualKoopmanMPC, ResidualMPCConfig
+from rkmpc.control.learned.residual_config import ResidualMPCConfig
+from rkmpc.control.learned.rkmpc import PaperResidualKoopmanMPC, ResidualKoopmanMPC
 from rkmpc.control.linear.lmpc import LMPCConfig
 from rkmpc.core.errors import ParameterError
 from rkmpc.experiments.compare import CompareConfig
 from rkmpc.sim.collect import excitation_lateral_accel
-from rkmpc.sim.scenario import VEHICLES, load_scenario
+from rkmpc.sim.scenario import (
+    FULLSIZE_LIMITS,
+    VEHICLES,
+    fullsize_residual,
+    load_scenario,
+    residual_settings,
+)
+from rkmpc.vehicle.params import fullsize
 
 LMPC_BASED = ("lmpc", "lmpc-id", "kmpc", "rkmpc", "rkmpc-paper")
 
@@ -44,9 +53,25 @@ def test_fullsize_lmpc_is_the_tuned_one_and_f1tenth_keeps_the_defaults():
 def test_fullsize_residual_settings_grow_with_the_car():
     small = VEHICLES["f1tenth"].options_for("rkmpc")["config"]
     large = VEHICLES["fullsize"].options_for("rkmpc")["config"]
+    paper = VEHICLES["fullsize"].options_for("rkmpc-paper")["config"]
     assert large.max_speed_correction > 5.0 * small.max_speed_correction
-    assert large.steer_weight > 50.0 * small.steer_weight
-    assert large.position_weight == small.position_weight
+    assert paper.steer_weight > 50.0 * PaperResidualKoopmanMPC.default_config.steer_weight
+    assert small.lateral_accel_weight == 0.0
+
+
+def test_fullsize_rkmpc_prices_steering_by_speed_as_the_scaled_settings_at_top_speed():
+    scaled, _ = residual_settings(fullsize(), FULLSIZE_LIMITS)
+    cfg = VEHICLES["fullsize"].options_for("rkmpc")["config"]
+    assert cfg == fullsize_residual(scaled, fullsize(), FULLSIZE_LIMITS)
+
+    def price(speed: float) -> float:  # steering weight per unit position weight at a planned speed
+        gain = speed**2 / fullsize().wheelbase
+        return (cfg.steer_weight + cfg.lateral_accel_weight * gain**2) / cfg.position_weight
+
+    top = FULLSIZE_LIMITS.max_speed
+    assert price(top) == pytest.approx(scaled.steer_weight / scaled.position_weight)
+    assert price(0.5 * top) < 0.1 * price(top)  # corners at half the top speed: 1/16 of the price
+    assert cfg.steer_weight / cfg.position_weight < 0.01 * price(top)
 
 
 def test_scaled_by_one_is_the_same_settings_and_otherwise_by_the_rules():
@@ -57,6 +82,8 @@ def test_scaled_by_one_is_the_same_settings_and_otherwise_by_the_rules():
     assert big.speed_weight == pytest.approx(base.speed_weight / 4.0)
     assert big.max_speed_correction == pytest.approx(4.0 * base.max_speed_correction)
     assert big.max_steer_correction == base.max_steer_correction
+    priced = replace(base, lateral_accel_weight=1.0).scaled(2.0, 4.0)
+    assert priced.lateral_accel_weight == pytest.approx((2.0 / 4.0) ** 4)
     with pytest.raises(ParameterError):
         base.scaled(0.0, 1.0)
 

@@ -15,7 +15,8 @@ from dataclasses import asdict, dataclass, replace
 from typing import Any
 
 from rkmpc.analysis.metrics import LapMetrics
-from rkmpc.control.learned.rkmpc import PaperResidualKoopmanMPC, ResidualKoopmanMPC, ResidualMPCConfig
+from rkmpc.control.learned.residual_config import ResidualMPCConfig
+from rkmpc.control.learned.rkmpc import PaperResidualKoopmanMPC, ResidualKoopmanMPC
 from rkmpc.core.errors import ParameterError
 from rkmpc.core.validation import is_integer
 from rkmpc.core.versions import versions

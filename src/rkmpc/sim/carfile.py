@@ -46,7 +46,7 @@ from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
-from rkmpc.control.learned.rkmpc import ResidualMPCConfig
+from rkmpc.control.learned.residual_config import ResidualMPCConfig
 from rkmpc.control.linear.lmpc import LMPCConfig
 from rkmpc.control.pure_pursuit import PurePursuitConfig
 from rkmpc.core.errors import InputFileError, ParameterError

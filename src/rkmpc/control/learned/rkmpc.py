@@ -30,26 +30,25 @@ changes.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from rkmpc.control.base import Controller
 from rkmpc.control.guard import CommandGuard
-from rkmpc.control.learned.adaptation import AdaptationConfig, OutputRLS
+from rkmpc.control.learned.adaptation import OutputRLS
 from rkmpc.control.learned.lifted import (
     LiftedModel,
     lifted_prediction,
     recipe_state,
     reference_in_local_frame,
 )
-from rkmpc.control.learned.trust import CorrectionTrust, TrustConfig
+from rkmpc.control.learned.residual_config import ResidualMPCConfig
+from rkmpc.control.learned.trust import CorrectionTrust
 from rkmpc.control.linear.lmpc import LinearMPC, LMPCConfig, Prediction
 from rkmpc.control.qp import make_qp
 from rkmpc.core.errors import ParameterError
 from rkmpc.core.observation import Command, Observation
-from rkmpc.core.validation import require_nonnegative, require_positive_value
 from rkmpc.learning.data.residuals import kinematic_inverse
 from rkmpc.learning.features import FeatureMap
 from rkmpc.vehicle.params import VehicleParams
@@ -61,94 +60,6 @@ if TYPE_CHECKING:
 def _all_finite(values: np.ndarray) -> bool:
     """Whether every entry of a small float array is finite."""
     return bool(np.isfinite(values).all())
-
-
-@dataclass(frozen=True)
-class ResidualMPCConfig:
-    """Weights and bounds of the residual MPC (paper Eq. MPC2).
-
-    Parameters
-    ----------
-    position_weight, heading_weight : float
-        Tracking weights of the predicted position and heading errors.
-    speed_weight : float
-        mu: weight of the squared speed correction ``dv^2``.
-    steer_weight : float
-        epsilon: weight of the squared steering correction ``ddelta^2``.
-    max_speed_correction : float
-        Bound on ``|dv|`` (m/s).
-    max_steer_correction : float
-        Bound on ``|ddelta|`` (rad).
-    solver : str
-        QP backend.
-    max_iterations : int
-        QP iteration budget; on failure the LMPC's command is applied alone.
-    steer_rate_weight : float
-        Weight of the squared change of the steering correction from one step to the next
-        (the first against the correction applied last), so the correction does not make the
-        commanded wheel angle move faster than the LMPC's; 0 for none.
-    trust : TrustConfig
-        Out-of-distribution guard: how the correction fades toward the LMPC's command when the
-        state leaves the model's training range or its predictions go wrong
-        (:mod:`rkmpc.control.learned.trust`; used by ``rkmpc``, whose model predicts its features).
-    adaptation : AdaptationConfig
-        Online recursive least squares on the output map of the ``rkmpc`` model
-        (:mod:`rkmpc.control.learned.adaptation`); off by default.
-    """
-
-    position_weight: float = 1.0
-    heading_weight: float = 1.0
-    speed_weight: float = 0.5
-    steer_weight: float = 2.0
-    max_speed_correction: float = 1.0
-    max_steer_correction: float = 0.15
-    solver: str = "daqp"
-    max_iterations: int = 200
-    steer_rate_weight: float = 0.0
-    trust: TrustConfig = field(default_factory=TrustConfig)
-    adaptation: AdaptationConfig = field(default_factory=AdaptationConfig)
-
-    def __post_init__(self) -> None:
-        require_nonnegative(
-            self, "position_weight", "heading_weight", "speed_weight", "steer_weight", "steer_rate_weight"
-        )
-        if self.speed_weight <= 0 or self.steer_weight <= 0:
-            raise ParameterError("ResidualMPCConfig: speed_weight and steer_weight must be > 0")
-        if not (self.max_speed_correction > 0 and self.max_steer_correction > 0):
-            raise ParameterError("ResidualMPCConfig: correction bounds must be > 0")
-
-    def scaled(self, length: float, speed: float) -> ResidualMPCConfig:
-        """These settings carried over to a car ``length`` times as long that drives ``speed`` times as fast.
-
-        The cost keeps its balance when every term grows like the squared position error
-        (``length**2``): wheel angles on a track of the car's size are alike, so the weight of the
-        steering correction grows with ``length**2``; speed errors grow with ``speed``, so the weight
-        of the speed correction grows with ``(length / speed)**2``. The speed correction's bound grows
-        with ``speed``; the steering bound stays (wheel angles are alike). Position and heading
-        weights, solver and iteration budget stay.
-
-        Parameters
-        ----------
-        length : float
-            Ratio (-) of the new car's wheelbase to the one these settings were tuned for, > 0.
-        speed : float
-            Ratio (-) of the new car's top speed of the speed profile to the old one's, > 0.
-
-        Returns
-        -------
-        ResidualMPCConfig
-            ``self`` itself when both ratios are 1.
-        """
-        k = require_positive_value(length, "length")
-        v = require_positive_value(speed, "speed")
-        if k == 1.0 and v == 1.0:
-            return self
-        return replace(
-            self,
-            speed_weight=self.speed_weight * (k / v) ** 2,
-            steer_weight=self.steer_weight * k**2,
-            max_speed_correction=self.max_speed_correction * v,
-        )
 
 
 class _ResidualBase(Controller):
@@ -318,6 +229,9 @@ class ResidualKoopmanMPC(_ResidualBase):
         # The last step's lifted state, command and pose (for adaptation).
         self._last: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self._pose = np.zeros(3)
+        # Diagonal entries of the residual Hessian that weigh the steering corrections.
+        steer = 2 * np.arange(self.horizon) + 1
+        self._steer_diag = (steer, steer)
 
     def _reset(self) -> None:
         super()._reset()
@@ -377,6 +291,9 @@ class ResidualKoopmanMPC(_ResidualBase):
         GtQ = (self._q[:, None] * GM).T
         H = GtQ @ GM
         H += self._R
+        if self.config.lateral_accel_weight > 0.0:
+            gain = pred.plan[:, 0] ** 2 / self.vehicle.wheelbase  # (m/s^2)/rad at each planned speed
+            H[self._steer_diag] += self.config.lateral_accel_weight * gain**2
         H *= 2.0
         f = GtQ @ e0
         f *= 2.0
@@ -407,6 +324,10 @@ class PaperResidualKoopmanMPC(_ResidualBase):
     varying_hessian = False
 
     def _precompute(self) -> None:
+        if self.config.lateral_accel_weight > 0.0:
+            raise ParameterError(
+                "rkmpc-paper: lateral_accel_weight must be 0 (its residual QP keeps one Hessian)"
+            )
         m = self.model
         self._Mz, self._Mu = lifted_prediction(m.A_, m.B_, m.C_[:3], None, self.horizon, first=1)
         # The car sits at the origin of its own frame: the features of any observation are the pose 0.

@@ -1,0 +1,116 @@
+"""Settings of the residual MPC of ``rkmpc`` and ``rkmpc-paper`` (paper Eq. MPC2)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+from rkmpc.control.learned.adaptation import AdaptationConfig
+from rkmpc.control.learned.trust import TrustConfig
+from rkmpc.core.errors import ParameterError
+from rkmpc.core.validation import require_nonnegative, require_positive_value
+
+__all__ = ["ResidualMPCConfig"]
+
+
+@dataclass(frozen=True)
+class ResidualMPCConfig:
+    """Weights and bounds of the residual MPC (paper Eq. MPC2).
+
+    Parameters
+    ----------
+    position_weight, heading_weight : float
+        Tracking weights of the predicted position and heading errors.
+    speed_weight : float
+        mu: weight of the squared speed correction ``dv^2``.
+    steer_weight : float
+        epsilon: weight of the squared steering correction ``ddelta^2``.
+    max_speed_correction : float
+        Bound on ``|dv|`` (m/s).
+    max_steer_correction : float
+        Bound on ``|ddelta|`` (rad).
+    solver : str
+        QP backend.
+    max_iterations : int
+        QP iteration budget; on failure the LMPC's command is applied alone.
+    steer_rate_weight : float
+        Weight of the squared change of the steering correction from one step to the next
+        (the first against the correction applied last), so the correction does not make the
+        commanded wheel angle move faster than the LMPC's; 0 for none.
+    lateral_accel_weight : float
+        Weight (s^4/m^2) of the squared lateral acceleration a steering correction adds at the
+        speed the LMPC plans for that step, ``(v_k**2 / L * ddelta_k)**2`` (``rkmpc`` only; 0 for
+        none). A wheel-angle change moves the car by ``v**2 / L`` times as much at speed ``v``,
+        so a fixed ``steer_weight`` that lets the correction act in slow corners lets it
+        oscillate on fast straights; this term makes the correction's price grow with ``v**4``.
+    trust : TrustConfig
+        Out-of-distribution guard: how the correction fades toward the LMPC's command when the
+        state leaves the model's training range or its predictions go wrong
+        (:mod:`rkmpc.control.learned.trust`; used by ``rkmpc``, whose model predicts its features).
+    adaptation : AdaptationConfig
+        Online recursive least squares on the output map of the ``rkmpc`` model
+        (:mod:`rkmpc.control.learned.adaptation`); off by default.
+    """
+
+    position_weight: float = 1.0
+    heading_weight: float = 1.0
+    speed_weight: float = 0.5
+    steer_weight: float = 2.0
+    max_speed_correction: float = 1.0
+    max_steer_correction: float = 0.15
+    solver: str = "daqp"
+    max_iterations: int = 200
+    steer_rate_weight: float = 0.0
+    lateral_accel_weight: float = 0.0
+    trust: TrustConfig = field(default_factory=TrustConfig)
+    adaptation: AdaptationConfig = field(default_factory=AdaptationConfig)
+
+    def __post_init__(self) -> None:
+        require_nonnegative(
+            self,
+            "position_weight",
+            "heading_weight",
+            "speed_weight",
+            "steer_weight",
+            "steer_rate_weight",
+            "lateral_accel_weight",
+        )
+        if self.speed_weight <= 0 or self.steer_weight <= 0:
+            raise ParameterError("ResidualMPCConfig: speed_weight and steer_weight must be > 0")
+        if not (self.max_speed_correction > 0 and self.max_steer_correction > 0):
+            raise ParameterError("ResidualMPCConfig: correction bounds must be > 0")
+
+    def scaled(self, length: float, speed: float) -> ResidualMPCConfig:
+        """These settings carried over to a car ``length`` times as long that drives ``speed`` times as fast.
+
+        The cost keeps its balance when every term grows like the squared position error
+        (``length**2``): wheel angles on a track of the car's size are alike, so the weight of the
+        steering correction grows with ``length**2``; speed errors grow with ``speed``, so the weight
+        of the speed correction grows with ``(length / speed)**2``, and the weight of the lateral
+        acceleration a steering correction adds (which grows with ``speed**2 / length``) with
+        ``(length**2 / speed**2)**2``. The speed correction's bound grows
+        with ``speed``; the steering bound stays (wheel angles are alike). Position and heading
+        weights, solver and iteration budget stay.
+
+        Parameters
+        ----------
+        length : float
+            Ratio (-) of the new car's wheelbase to the one these settings were tuned for, > 0.
+        speed : float
+            Ratio (-) of the new car's top speed of the speed profile to the old one's, > 0.
+
+        Returns
+        -------
+        ResidualMPCConfig
+            ``self`` itself when both ratios are 1.
+        """
+        k = require_positive_value(length, "length")
+        v = require_positive_value(speed, "speed")
+        if k == 1.0 and v == 1.0:
+            return self
+        return replace(
+            self,
+            speed_weight=self.speed_weight * (k / v) ** 2,
+            steer_weight=self.steer_weight * k**2,
+            lateral_accel_weight=self.lateral_accel_weight * (k / v) ** 4,
+            max_speed_correction=self.max_speed_correction * v,
+        )
