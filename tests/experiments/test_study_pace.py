@@ -17,7 +17,7 @@ from rkmpc.analysis.study_plots import plot_learn_pace, plot_pace_study
 from rkmpc.core.errors import ParameterError
 from rkmpc.experiments.studies.learn_pace import LearnPaceConfig, learn_pace
 from rkmpc.experiments.studies.pace import study_pace
-from rkmpc.experiments.studies.pace_job import PaceStudyConfig, pace_job
+from rkmpc.experiments.studies.pace_job import PaceStep, PaceStudyConfig, pace_job
 from rkmpc.experiments.studies.pace_rules import (
     MAX_FALLBACK_SHARE,
     check_ladder,
@@ -344,3 +344,12 @@ def test_a_journal_resumes_the_pace_study_and_widens_it(synthetic, tmp_path, cap
         "differing: settings.car_config.training.seed, settings.seed)" in err
         and not (tmp_path / "c").exists()
     )
+
+
+def test_steps_read_back_from_the_result_file_are_the_steps(synthetic):
+    cfg = PaceStudyConfig(tracks=("builtin",), controllers=("lmpc", "rkmpc"), paces=LADDER, use_cache=False)
+    result = study_pace(cfg)
+    data = json.loads(json.dumps(result.to_json()))
+    for run, record in zip(result.runs, data["runs"], strict=True):
+        assert [PaceStep.from_json(s) for s in record["steps"]] == run.steps
+    assert any(s.data is not None and s.data.recorder_pace is not None for s in result.runs[1].steps)
