@@ -24,16 +24,13 @@ import hashlib
 import json
 import pickle
 from collections.abc import Mapping
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from rkmpc.core.errors import OutputError
 from rkmpc.core.io import atomic_write, write_json_atomic
 from rkmpc.core.jsonutil import to_json_ready
-
-if TYPE_CHECKING:
-    from rkmpc.experiments.parallel import JobOutcome
 
 __all__ = ["JobJournal", "JournalError"]
 
@@ -117,8 +114,8 @@ class JobJournal:
     def _entry(self, key: str) -> Path:
         return self.folder / f"{hashlib.sha256(key.encode()).hexdigest()[:32]}.pkl"
 
-    def load(self, key: str) -> JobOutcome | None:
-        """The outcome stored under ``key``, or None when there is none.
+    def load(self, key: str) -> Any:
+        """The outcome stored under ``key`` (a :class:`~rkmpc.experiments.parallel.JobOutcome`), or None.
 
         Raises
         ------
@@ -136,11 +133,9 @@ class JobJournal:
             raise JournalError(f"journal entry {path} (job {key!r}): unreadable ({exc})") from exc
         if stored_key != key:
             raise JournalError(f"journal entry {path} holds job {stored_key!r}, not {key!r}")
-        return replace(outcome, resumed=True)
+        return outcome
 
-    def save(self, key: str, outcome: JobOutcome) -> None:
-        """Store a finished job's outcome under ``key`` (failed jobs are not stored: they rerun)."""
-        if not outcome.ok:
-            return
+    def save(self, key: str, outcome: Any) -> None:
+        """Store a finished job's outcome (picklable) under ``key``."""
         with atomic_write(self._entry(key), "wb") as handle:
             pickle.dump({"key": key, "outcome": outcome}, handle, protocol=pickle.HIGHEST_PROTOCOL)

@@ -259,7 +259,7 @@ def run_jobs(
         if earlier is None:
             todo.append((i, job))
             continue
-        outcome = outcomes[i] = replace(earlier, name=job.name, index=i)
+        outcome = outcomes[i] = replace(earlier, name=job.name, index=i, resumed=True)
         done += 1
         if progress is not None:
             progress(outcome, done, total)
@@ -305,7 +305,7 @@ def _run(
         with joblib.parallel_config(**config):
             for outcome in _results(calls, unordered=backend != "ray"):
                 outcomes[outcome.index] = outcome
-                if journal is not None:
+                if journal is not None and outcome.ok:  # failed jobs are not kept: they run again
                     journal.save(keys[outcome.index], outcome)
                 done += 1
                 if progress is not None:
