@@ -17,7 +17,7 @@ from rkmpc.analysis.study_plots import plot_learn_pace, plot_pace_study
 from rkmpc.core.errors import ParameterError
 from rkmpc.experiments.studies.learn_pace import LearnPaceConfig, learn_pace
 from rkmpc.experiments.studies.pace import study_pace
-from rkmpc.experiments.studies.pace_job import PaceStudyConfig, pace_job
+from rkmpc.experiments.studies.pace_job import PaceStep, PaceStudyConfig, pace_job
 from rkmpc.experiments.studies.pace_rules import (
     MAX_FALLBACK_SHARE,
     check_ladder,
@@ -319,3 +319,37 @@ def test_cli_study_pace_and_learn_pace(tmp_path, capsys):
     assert [it["iteration"] for it in data["iterations"]] == [0, 1]
     assert (learn / "learn_pace.png").is_file() and "Learning to race" in capsys.readouterr().out
     assert main(["learn-pace", "--paces", "4:3.5", "--start", "4:3.5", "--out", str(tmp_path / "x")]) == 2
+
+
+def test_a_journal_resumes_the_pace_study_and_widens_it(synthetic, tmp_path, capsys):
+    from rkmpc.cli import main
+
+    journal = tmp_path / "journal"
+    argv = ["study", "pace", "--tracks", "builtin", "--steps", "3", "--jobs", "1", "--journal", str(journal)]
+    assert main([*argv, "--controllers", "rkmpc", "--out", str(tmp_path / "a")]) == 0
+    first = json.loads((tmp_path / "a" / "study_pace.json").read_text())
+    climbed = len(synthetic["record"])
+    assert climbed > 0
+    # More controllers, same settings: the rkmpc climb comes from the journal, only the LMPC runs.
+    assert main([*argv, "--controllers", "lmpc,rkmpc", "--out", str(tmp_path / "b")]) == 0
+    assert len(synthetic["record"]) == climbed
+    assert "builtin rkmpc: " in capsys.readouterr().err
+    second = json.loads((tmp_path / "b" / "study_pace.json").read_text())
+    assert second["runs"][1]["steps"] == first["runs"][0]["steps"]
+    assert [r["controller"] for r in second["runs"]] == ["lmpc", "rkmpc"]
+    # Another seed is another study: refused before anything runs, naming the setting.
+    assert main([*argv, "--controllers", "rkmpc", "--seed", "3", "--out", str(tmp_path / "c")]) != 0
+    err = capsys.readouterr().err
+    assert (
+        "differing: settings.car_config.training.seed, settings.seed)" in err
+        and not (tmp_path / "c").exists()
+    )
+
+
+def test_steps_read_back_from_the_result_file_are_the_steps(synthetic):
+    cfg = PaceStudyConfig(tracks=("builtin",), controllers=("lmpc", "rkmpc"), paces=LADDER, use_cache=False)
+    result = study_pace(cfg)
+    data = json.loads(json.dumps(result.to_json()))
+    for run, record in zip(result.runs, data["runs"], strict=True):
+        assert [PaceStep.from_json(s) for s in record["steps"]] == run.steps
+    assert any(s.data is not None and s.data.recorder_pace is not None for s in result.runs[1].steps)

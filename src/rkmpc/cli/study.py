@@ -25,6 +25,12 @@ if TYPE_CHECKING:
 __all__ = ["add_study_parser", "cmd_study", "data_study_config", "pace_study_config"]
 
 
+JOURNAL_HELP = (
+    "keep every finished job in this folder; a later run given it runs only the others "
+    "(same settings and versions; more tracks or controllers are fine for `study pace`)"
+)
+
+
 def add_study_parser(sub: Any) -> None:
     from rkmpc.experiments.compare import ALL_CONTROLLERS
     from rkmpc.experiments.studies.cars import CARS_CONTROLLERS, DEFAULT_CARS
@@ -54,6 +60,7 @@ def add_study_parser(sub: Any) -> None:
     )
     tracks.add_argument("--cache-dir", type=Path, default=None, help=CACHE_HELP)
     add_parallel_args(tracks)
+    tracks.add_argument("--journal", type=Path, default=None, help=JOURNAL_HELP)
     cars = kinds.add_parser("cars", help="every controller on cars of the zoo it was not built for")
     cars.add_argument("--cars", default=",".join(DEFAULT_CARS), help="zoo variants (or random-<seed>)")
     cars.add_argument("--tracks", default="builtin", help="as for `study tracks`")
@@ -68,6 +75,7 @@ def add_study_parser(sub: Any) -> None:
     )
     cars.add_argument("--cache-dir", type=Path, default=None, help=CACHE_HELP)
     add_parallel_args(cars)
+    cars.add_argument("--journal", type=Path, default=None, help=JOURNAL_HELP)
     data = kinds.add_parser("data", help="RKMPC against KMPC as the number of training samples grows")
     data.add_argument("--track", default="builtin")
     data.add_argument("--scale", type=float, default=None)
@@ -108,11 +116,14 @@ def add_study_parser(sub: Any) -> None:
     )
     pace.add_argument("--cache-dir", type=Path, default=None, help=CACHE_HELP)
     add_parallel_args(pace)
+    pace.add_argument("--journal", type=Path, default=None, help=JOURNAL_HELP)
 
 
 def _study_progress(console: Any) -> Any:
     def progress(outcome: Any, done: int, total: int) -> None:
         state = f"{outcome.seconds:.0f} s" if outcome.ok else f"FAILED: {outcome.error}"
+        if outcome.resumed:
+            state += " (earlier run, from the journal)"
         console.print(f"[{done}/{total}] {outcome.name}: {state}")
 
     return progress
@@ -162,15 +173,17 @@ def cmd_study(args: argparse.Namespace) -> int:
     from rkmpc.analysis.plots import save_figure
     from rkmpc.analysis.study_plots import plot_cars_study, plot_data_study, plot_pace_study
     from rkmpc.core.io import check_output_folder, output_folder, write_json_atomic, write_text_atomic
+    from rkmpc.experiments.journal import JobJournal
     from rkmpc.experiments.parallel import limit_threads
     from rkmpc.experiments.studies.cars import CarsStudyConfig, study_cars
     from rkmpc.experiments.studies.common import expand_tracks
     from rkmpc.experiments.studies.data import study_data
-    from rkmpc.experiments.studies.pace import study_pace
-    from rkmpc.experiments.studies.tracks import TracksStudyConfig, study_tracks
+    from rkmpc.experiments.studies.pace import pace_journal_settings, study_pace
+    from rkmpc.experiments.studies.tracks import TracksStudyConfig, study_tracks, track_journal_settings
 
     # The folder is checked before hours of runs, and made when they are done.
     check_output_folder(args.out, force=args.force, markers=(f"study_{args.study}.json",))
+    journal = getattr(args, "journal", None)
     limit_threads()  # this process trains too (the KMPC model, or jobs when --jobs 1)
     console = Console(stderr=True)
     where = {"n_jobs": args.jobs, "backend": args.backend, "address": args.address}
@@ -200,13 +213,20 @@ def cmd_study(args: argparse.Namespace) -> int:
             baseline="lmpc" if "lmpc" in names else None,
             study_options=options,
         )
+        kept = None if journal is None else JobJournal(journal, track_journal_settings(args.study)).open()
         if args.study == "tracks":
-            result = study_tracks(config, **where, progress=_study_progress(console), say=console.print)
+            result = study_tracks(
+                config, **where, progress=_study_progress(console), say=console.print, journal=kept
+            )
         else:
             cars_config = CarsStudyConfig(cars=args.cars, tracks=config)
-            result = study_cars(cars_config, **where, progress=_study_progress(console), say=console.print)
+            result = study_cars(
+                cars_config, **where, progress=_study_progress(console), say=console.print, journal=kept
+            )
     elif args.study == "pace":
-        result = study_pace(pace_study_config(args), **where, progress=_study_progress(console))
+        pace_config = pace_study_config(args)
+        kept = None if journal is None else JobJournal(journal, pace_journal_settings(pace_config)).open()
+        result = study_pace(pace_config, **where, progress=_study_progress(console), journal=kept)
     else:
         result = study_data(data_study_config(args), **where, progress=_study_progress(console))
     stem = f"study_{args.study}"

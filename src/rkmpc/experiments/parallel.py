@@ -41,12 +41,15 @@ import sys
 import time
 import traceback
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
-from dataclasses import dataclass, field
-from typing import Any
+from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING, Any
 
 import joblib
 
 from rkmpc.core.errors import ParameterError, RkmpcError
+
+if TYPE_CHECKING:
+    from rkmpc.experiments.journal import JobJournal
 
 #: Backends :func:`run_jobs` accepts.
 BACKENDS = ("loky", "dask", "ray")
@@ -88,18 +91,24 @@ class Job:
         Positional arguments (picklable).
     kwargs : mapping
         Keyword arguments (picklable).
+    key : str
+        What identifies the job in a :class:`~rkmpc.experiments.journal.JobJournal` across runs
+        (default: ``name``; a study whose names are short labels gives the full spec here).
     """
 
     name: str
     func: Callable[..., Any]
     args: tuple[Any, ...] = ()
     kwargs: Mapping[str, Any] = field(default_factory=dict)
+    key: str = ""
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name:
             raise ParameterError(f"Job.name must be a non-empty string, got {self.name!r}")
         if not callable(self.func):
             raise ParameterError(f"Job.func of job {self.name!r} is not callable: {self.func!r}")
+        if not self.key:
+            object.__setattr__(self, "key", self.name)
 
 
 @dataclass(frozen=True)
@@ -121,7 +130,9 @@ class JobOutcome:
     traceback : str or None
         Formatted traceback of a failed job (from the worker).
     seconds : float
-        Wall time of the job in its worker (s).
+        Wall time of the job in its worker (s), in the run that ran it.
+    resumed : bool
+        Taken from a journal (an earlier run) instead of run now.
     """
 
     name: str
@@ -131,6 +142,7 @@ class JobOutcome:
     error: str | None = None
     traceback: str | None = None
     seconds: float = 0.0
+    resumed: bool = False
 
 
 #: Progress callback: ``(outcome, jobs_done, jobs_total)``, called in the calling process.
@@ -192,6 +204,7 @@ def run_jobs(
     address: str | None = None,
     on_error: str = "raise",
     progress: ProgressCallback | None = None,
+    journal: JobJournal | None = None,
 ) -> list[JobOutcome]:
     """Run independent jobs and return their outcomes in job order.
 
@@ -216,6 +229,10 @@ def run_jobs(
         ``progress(outcome, done, total)``, called in this process as each job
         finishes (in completion order; with ``"ray"``, whose joblib backend
         returns results only at the end, once per job after all have run).
+    journal : JobJournal, optional
+        Jobs whose outcome the journal holds (by :attr:`Job.key`) are not run: their outcome is
+        taken from it (``resumed=True``, reported first); every job that finishes without error
+        is stored in it as it finishes (:mod:`rkmpc.experiments.journal`). It must be open.
 
     Returns
     -------
@@ -234,19 +251,62 @@ def run_jobs(
     jobs = list(jobs)
     _check(jobs, n_jobs, backend, on_error)
     total = len(jobs)
-    if total == 0:
-        return []
-    single_thread = not (backend == "loky" and n_jobs == 1)
-    if backend == "loky" and n_jobs > total:
-        n_jobs = total  # no more workers than jobs (the threads per job stay as asked, above)
     outcomes: list[JobOutcome | None] = [None] * total
-    config, started_ray = _backend_config(backend, n_jobs, address)
-    calls = (joblib.delayed(_run_one)(i, job, single_thread) for i, job in enumerate(jobs))
     done = 0
+    todo: list[tuple[int, Job]] = []
+    for i, job in enumerate(jobs):
+        earlier = None if journal is None else journal.load(job.key)
+        if earlier is None:
+            todo.append((i, job))
+            continue
+        outcome = outcomes[i] = replace(earlier, name=job.name, index=i, resumed=True)
+        done += 1
+        if progress is not None:
+            progress(outcome, done, total)
+    if todo:
+        _run(
+            todo,
+            outcomes,
+            done,
+            n_jobs=n_jobs,
+            backend=backend,
+            address=address,
+            on_error=on_error,
+            progress=progress,
+            journal=journal,
+        )
+    missing = [jobs[i].name for i, o in enumerate(outcomes) if o is None]
+    if missing:
+        raise JobError(missing[0], "no result came back from the backend")
+    return [o for o in outcomes if o is not None]
+
+
+def _run(
+    todo: list[tuple[int, Job]],
+    outcomes: list[JobOutcome | None],
+    done: int,
+    *,
+    n_jobs: int,
+    backend: str,
+    address: str | None,
+    on_error: str,
+    progress: ProgressCallback | None,
+    journal: JobJournal | None,
+) -> None:
+    """Run the jobs of ``todo`` (index, job), filling ``outcomes`` and the journal as they finish."""
+    total = len(outcomes)
+    single_thread = not (backend == "loky" and n_jobs == 1)
+    if backend == "loky" and n_jobs > len(todo):
+        n_jobs = len(todo)  # no more workers than jobs (the threads per job stay as asked, above)
+    config, started_ray = _backend_config(backend, n_jobs, address)
+    keys = {i: job.key for i, job in todo}
+    calls = (joblib.delayed(_run_one)(i, job, single_thread) for i, job in todo)
     try:
         with joblib.parallel_config(**config):
             for outcome in _results(calls, unordered=backend != "ray"):
                 outcomes[outcome.index] = outcome
+                if journal is not None and outcome.ok:  # failed jobs are not kept: they run again
+                    journal.save(keys[outcome.index], outcome)
                 done += 1
                 if progress is not None:
                     progress(outcome, done, total)
@@ -257,10 +317,6 @@ def run_jobs(
             import ray
 
             ray.shutdown()
-    missing = [jobs[i].name for i, o in enumerate(outcomes) if o is None]
-    if missing:
-        raise JobError(missing[0], "no result came back from the backend")
-    return [o for o in outcomes if o is not None]
 
 
 def _backend_config(backend: str, n_jobs: int, address: str | None) -> tuple[dict[str, Any], bool]:

@@ -20,6 +20,7 @@ from rkmpc.analysis.statistics import ControllerSummary, Stats, summarise_runs
 from rkmpc.analysis.tables import fmt, markdown
 from rkmpc.core.errors import ParameterError
 from rkmpc.experiments.compare import CompareConfig
+from rkmpc.experiments.journal import JobJournal
 from rkmpc.experiments.parallel import JobOutcome
 from rkmpc.experiments.studies.common import check_parallel, json_object, str_tuple, study_versions
 from rkmpc.experiments.studies.tracks import (
@@ -232,6 +233,7 @@ def study_cars(
     address: str | None = None,
     progress: Callable[[JobOutcome, int, int], None] | None = None,
     say: Callable[[str], None] | None = None,
+    journal: JobJournal | None = None,
 ) -> CarsStudyResult:
     """Compare the controllers on every car, track and seed, in parallel, and summarise per car.
 
@@ -248,6 +250,8 @@ def study_cars(
         ``progress(outcome, done, total)`` as each job finishes.
     say : callable, optional
         Called with a short message before each slow stage.
+    journal : JobJournal, optional
+        Finished jobs kept across runs (:func:`~rkmpc.experiments.studies.tracks.run_track_jobs`).
     """
     if not isinstance(config, CarsStudyConfig):
         raise ParameterError("study_cars: config must be a CarsStudyConfig")
@@ -259,7 +263,9 @@ def study_cars(
     keys = [(car, spec, seed) for car in config.cars for spec in tracks.tracks for seed in tracks.seeds]
     tell(f"{len(config.cars)} cars x {len(tracks.tracks)} tracks x {len(tracks.seeds)} seeds")
     named = [(f"{car} {spec} seed {seed}", config.job_config(car, spec, seed)) for car, spec, seed in keys]
-    jobs, wall = run_track_jobs(named, n_jobs=n_jobs, backend=backend, address=address, progress=progress)
+    jobs, wall = run_track_jobs(
+        named, n_jobs=n_jobs, backend=backend, address=address, progress=progress, journal=journal
+    )
     records = [CarJob(car=car, job=job) for (car, _, _), job in zip(keys, jobs, strict=True)]
     summary = {}
     for car in config.cars:

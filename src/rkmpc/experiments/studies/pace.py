@@ -13,13 +13,14 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from typing import Any
 
 from rkmpc.analysis.statistics import stats
 from rkmpc.analysis.study_plots import PaceSeries
 from rkmpc.analysis.tables import fmt, fmt_stats, markdown
 from rkmpc.core.errors import ParameterError
+from rkmpc.experiments.journal import JobJournal
 from rkmpc.experiments.parallel import Job, JobOutcome, run_jobs
 from rkmpc.experiments.studies.common import (
     check_parallel,
@@ -31,7 +32,7 @@ from rkmpc.experiments.studies.common import (
 from rkmpc.experiments.studies.pace_job import PaceStep, PaceStudyConfig, job_name, pace_job
 from rkmpc.experiments.studies.pace_rules import MAX_FALLBACK_SHARE, pace_label
 
-__all__ = ["PACE_BASELINES", "PaceRun", "PaceStudyResult", "study_pace"]
+__all__ = ["PACE_BASELINES", "PaceRun", "PaceStudyResult", "pace_journal_settings", "study_pace"]
 
 #: Controllers every other one's best lap time is compared with, where they are in the study.
 PACE_BASELINES = ("lmpc", "nmpc-dynamic")
@@ -236,6 +237,18 @@ def _data_cell(step: PaceStep) -> str:
     return f"{d.recorder}{at} {d.samples}{lmpc}"
 
 
+def pace_journal_settings(config: PaceStudyConfig) -> dict[str, Any]:
+    """What a pace study's journal must match: its settings but the tracks, controllers and cache.
+
+    A journal of the same settings is reused by a run over more tracks or controllers; the job
+    key is the track spec and the controller.
+    """
+    settings = json_object(asdict(config))
+    for name in ("tracks", "controllers", "cache_dir", "use_cache"):
+        settings.pop(name)
+    return {"study": "pace", "settings": settings, "versions": study_versions()}
+
+
 def study_pace(
     config: PaceStudyConfig,
     *,
@@ -243,6 +256,7 @@ def study_pace(
     backend: str = "loky",
     address: str | None = None,
     progress: Callable[[JobOutcome, int, int], None] | None = None,
+    journal: JobJournal | None = None,
 ) -> PaceStudyResult:
     """Climb the pace ladder with every controller on every track, in parallel.
 
@@ -255,15 +269,24 @@ def study_pace(
     progress : callable, optional
         ``progress(outcome, done, total)`` as each job finishes (``outcome.name`` is
         ``"<track> <controller>"``).
+    journal : JobJournal, optional
+        Finished (track, controller) climbs kept across runs (:mod:`rkmpc.experiments.journal`),
+        opened with :func:`pace_journal_settings`; only the others are run.
     """
     if not isinstance(config, PaceStudyConfig):
         raise ParameterError("study_pace: config must be a PaceStudyConfig")
     check_parallel(n_jobs, backend)
     keys: Sequence[tuple[str, str]] = [(t, c) for t in config.tracks for c in config.controllers]
-    jobs = [Job(job_name(t, c), pace_job, (config, t, c)) for t, c in keys]
+    jobs = [Job(job_name(t, c), pace_job, (config, t, c), key=f"{t} {c}") for t, c in keys]
     t0 = time.perf_counter()
     outcomes = run_jobs(
-        jobs, n_jobs=n_jobs, backend=backend, address=address, on_error="record", progress=progress
+        jobs,
+        n_jobs=n_jobs,
+        backend=backend,
+        address=address,
+        on_error="record",
+        progress=progress,
+        journal=journal,
     )
     wall = time.perf_counter() - t0
     runs = [

@@ -15,7 +15,7 @@ clean (higher paces are not tried). Every step records which data its model lear
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -183,6 +183,19 @@ class DataSource:
     lmpc_reason: str | None
     model: dict[str, Any]
 
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> DataSource:
+        """The inverse of the record a result file holds (``dataclasses.asdict``)."""
+        fields = dict(data)
+        fields["pace"] = _pace(fields["pace"])
+        fields["recorder_pace"] = None if fields["recorder_pace"] is None else _pace(fields["recorder_pace"])
+        return cls(**fields)
+
+
+def _pace(value: Sequence[float]) -> Pace:
+    lateral, speed = value
+    return (float(lateral), float(speed))
+
 
 @dataclass(frozen=True)
 class PaceStep:
@@ -209,6 +222,20 @@ class PaceStep:
             "metrics": None if self.metrics is None else self.metrics.to_json(),
             "data": self.data,
         }
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> PaceStep:
+        """The step a result file records (:meth:`to_json`, as written to JSON)."""
+        return cls(
+            index=int(data["index"]),
+            pace=_pace((data["lateral_accel"], data["max_speed"])),
+            reference_lap_time_s=float(data["reference_lap_time_s"]),
+            clean=bool(data["clean"]),
+            reason=data["reason"],
+            outcome=data["outcome"],
+            metrics=None if data["metrics"] is None else LapMetrics.from_json(data["metrics"]),
+            data=None if data["data"] is None else DataSource.from_json(data["data"]),
+        )
 
 
 def train_on(

@@ -12,6 +12,7 @@ recorded (its message in the result) and the others go on.
 from __future__ import annotations
 
 import dataclasses
+import json
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
@@ -21,8 +22,10 @@ from typing import Any
 from rkmpc.analysis.statistics import ControllerSummary, RunGroup, RunRow, summarise_runs
 from rkmpc.analysis.tables import fmt, fmt_stats, markdown
 from rkmpc.core.errors import ParameterError
+from rkmpc.core.jsonutil import to_json_ready
 from rkmpc.experiments.cache import ModelCache
 from rkmpc.experiments.compare import LEARNED_CONTROLLERS, CompareConfig, compare
+from rkmpc.experiments.journal import JobJournal
 from rkmpc.experiments.models import train_excitation_model
 from rkmpc.experiments.parallel import Job, JobOutcome, run_jobs
 from rkmpc.experiments.results import TrackResult
@@ -45,6 +48,7 @@ __all__ = [
     "run_track_jobs",
     "study_tracks",
     "summary_table",
+    "track_journal_settings",
     "train_shared_models",
 ]
 
@@ -204,6 +208,7 @@ def study_tracks(
     address: str | None = None,
     progress: Callable[[JobOutcome, int, int], None] | None = None,
     say: Callable[[str], None] | None = None,
+    journal: JobJournal | None = None,
 ) -> TracksStudyResult:
     """Compare the controllers on every track and seed, in parallel, and summarise.
 
@@ -222,6 +227,9 @@ def study_tracks(
         (``outcome.name`` is ``"<track> seed <seed>"``).
     say : callable, optional
         Called with a short message before each slow stage.
+    journal : JobJournal, optional
+        Finished jobs kept across runs (:func:`run_track_jobs`), opened with
+        :func:`track_journal_settings`.
     """
     if not isinstance(config, TracksStudyConfig):
         raise ParameterError("study_tracks: config must be a TracksStudyConfig")
@@ -234,7 +242,9 @@ def study_tracks(
         for spec in config.tracks
         for seed in config.seeds
     ]
-    records, wall = run_track_jobs(named, n_jobs=n_jobs, backend=backend, address=address, progress=progress)
+    records, wall = run_track_jobs(
+        named, n_jobs=n_jobs, backend=backend, address=address, progress=progress, journal=journal
+    )
     summary, rows = summarise_runs([job.group() for job in records], config.controllers, config.baseline)
     return TracksStudyResult(
         config=config,
@@ -247,6 +257,18 @@ def study_tracks(
     )
 
 
+def track_journal_settings(study: str) -> dict[str, Any]:
+    """What the journal of a tracks or cars study must match: the study and the package versions.
+
+    Everything else is in each job's key (its whole :class:`CompareConfig`).
+    """
+    return {"study": study, "versions": study_versions()}
+
+
+def _job_key(cfg: CompareConfig) -> str:
+    return json.dumps(to_json_ready(cfg), sort_keys=True, separators=(",", ":"))
+
+
 def run_track_jobs(
     named: Sequence[tuple[str, CompareConfig]],
     *,
@@ -254,15 +276,25 @@ def run_track_jobs(
     backend: str,
     address: str | None,
     progress: Callable[[JobOutcome, int, int], None] | None,
+    journal: JobJournal | None = None,
 ) -> tuple[list[TrackJob], float]:
     """Run one :func:`compare` per ``(name, config)`` in parallel; a job that raises is recorded.
 
+    With a ``journal``, a job's key is its whole configuration (canonical JSON), so a finished
+    job is reused only by a job configured exactly alike.
+
     Returns the jobs, in the given order, and the wall time of the whole run (s, for reports).
     """
-    jobs = [Job(name, compare, (cfg,)) for name, cfg in named]
+    jobs = [Job(name, compare, (cfg,), key=_job_key(cfg)) for name, cfg in named]
     t0 = time.perf_counter()
     outcomes = run_jobs(
-        jobs, n_jobs=n_jobs, backend=backend, address=address, on_error="record", progress=progress
+        jobs,
+        n_jobs=n_jobs,
+        backend=backend,
+        address=address,
+        on_error="record",
+        progress=progress,
+        journal=journal,
     )
     wall = time.perf_counter() - t0
     records = [

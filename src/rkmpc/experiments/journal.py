@@ -1,0 +1,141 @@
+"""Finished jobs of a long study kept on disk, so that a stopped run resumes where it was.
+
+A pace study over every shared track runs for hours; a crash, a reboot or a Ctrl-C used to lose
+all of it, because a study writes its result only at the end. A :class:`JobJournal` is a folder
+in which :func:`rkmpc.experiments.parallel.run_jobs` keeps the outcome of every job that
+finished without error, as it finishes. A later run given the same folder takes those outcomes
+from it instead of running the jobs again, and runs only the rest (the jobs that failed, were
+not reached, or are new: a study can be widened to more tracks and keep what it has).
+
+What must match for an outcome to be reused is the study's *settings* (a JSON-ready mapping the
+study builds: its configuration without the list of jobs, and the package's version). The
+journal records them in ``journal.json`` when it is first opened; opening it with other settings
+raises :class:`JournalError` naming the keys that differ, so results of other settings are never
+mixed in. Each job is stored under its key (by default its name) in ``<sha256>.pkl``, written to
+a temporary name and renamed, so an interrupted write leaves no half entry.
+
+Entries are pickles of :class:`~rkmpc.experiments.parallel.JobOutcome`: open only journals this
+package wrote (as with any pickle).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import pickle
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from rkmpc.core.errors import OutputError
+from rkmpc.core.io import atomic_write, write_json_atomic
+from rkmpc.core.jsonutil import to_json_ready
+
+__all__ = ["JobJournal", "JournalError"]
+
+#: Version of the journal's layout (``journal.json`` and the entries).
+JOURNAL_FORMAT = 1
+
+
+class JournalError(OutputError):
+    """A journal folder cannot be used: other settings, an unreadable entry, a file in the way."""
+
+
+def _canonical(value: Any) -> str:
+    return json.dumps(to_json_ready(value), sort_keys=True, separators=(",", ":"))
+
+
+def _differences(old: Any, new: Any, where: str) -> list[str]:
+    """Dotted paths of the entries in which two JSON values differ (mappings are entered)."""
+    if isinstance(old, dict) and isinstance(new, dict):
+        out: list[str] = []
+        for key in sorted(set(old) | set(new)):
+            out += _differences(old.get(key), new.get(key), f"{where}.{key}" if where else key)
+        return out
+    return [] if _canonical(old) == _canonical(new) else [where]
+
+
+@dataclass(frozen=True)
+class JobJournal:
+    """A folder of finished jobs, valid for one study's settings.
+
+    Parameters
+    ----------
+    folder : str or Path
+        Where the entries live (made when missing).
+    settings : mapping
+        JSON-ready description of everything that makes a job's outcome what it is, apart from
+        the job itself (whose key names it).
+    """
+
+    folder: Path
+    settings: Mapping[str, Any]
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "folder", Path(self.folder))
+        object.__setattr__(self, "settings", json.loads(_canonical(dict(self.settings))))
+
+    @property
+    def _header(self) -> Path:
+        return self.folder / "journal.json"
+
+    def open(self) -> JobJournal:
+        """Make the folder, or check that it was made for the same settings; returns ``self``.
+
+        Raises
+        ------
+        JournalError
+            ``folder`` is a file, holds files but no ``journal.json``, or its settings differ.
+        """
+        if self.folder.exists() and not self.folder.is_dir():
+            raise JournalError(f"journal {self.folder} is a file, not a folder")
+        if not self._header.is_file():
+            if self.folder.is_dir() and any(self.folder.iterdir()):
+                raise JournalError(f"journal {self.folder} is not empty and holds no journal.json")
+            write_json_atomic(self._header, {"format": JOURNAL_FORMAT, "settings": self.settings})
+            return self
+        try:
+            header = json.loads(self._header.read_text())
+            old = header["settings"]
+            fmt = header["format"]
+        except (OSError, ValueError, KeyError, TypeError) as exc:
+            raise JournalError(f"journal {self._header}: unreadable ({exc})") from exc
+        if fmt != JOURNAL_FORMAT:
+            raise JournalError(f"journal {self._header}: format {fmt!r}, this version reads {JOURNAL_FORMAT}")
+        if _canonical(old) != _canonical(self.settings):
+            keys = _differences(old, self.settings, "")
+            raise JournalError(
+                f"journal {self.folder} was written by a study with other settings "
+                f"(differing: {', '.join(keys)}); give another journal folder or delete this one"
+            )
+        return self
+
+    def _entry(self, key: str) -> Path:
+        return self.folder / f"{hashlib.sha256(key.encode()).hexdigest()[:32]}.pkl"
+
+    def load(self, key: str) -> Any:
+        """The outcome stored under ``key`` (a :class:`~rkmpc.experiments.parallel.JobOutcome`), or None.
+
+        Raises
+        ------
+        JournalError
+            The entry cannot be read or belongs to another key.
+        """
+        path = self._entry(key)
+        if not path.is_file():
+            return None
+        try:
+            with path.open("rb") as handle:
+                stored = pickle.load(handle)
+            stored_key, outcome = stored["key"], stored["outcome"]
+        except Exception as exc:
+            raise JournalError(f"journal entry {path} (job {key!r}): unreadable ({exc})") from exc
+        if stored_key != key:
+            raise JournalError(f"journal entry {path} holds job {stored_key!r}, not {key!r}")
+        return outcome
+
+    def save(self, key: str, outcome: Any) -> None:
+        """Store a finished job's outcome (picklable) under ``key``."""
+        with atomic_write(self._entry(key), "wb") as handle:
+            pickle.dump({"key": key, "outcome": outcome}, handle, protocol=pickle.HIGHEST_PROTOCOL)
