@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from typing import Any
 
 from rkmpc.analysis.statistics import stats
@@ -243,7 +243,7 @@ def pace_journal_settings(config: PaceStudyConfig) -> dict[str, Any]:
     A journal of the same settings is reused by a run over more tracks or controllers; the job
     key is the track spec and the controller.
     """
-    settings = json_object(asdict(config))
+    settings = json_object(settings_json(config, config.car_config))  # as the result file records it
     for name in ("tracks", "controllers", "cache_dir", "use_cache"):
         settings.pop(name)
     return {"study": "pace", "settings": settings, "versions": study_versions()}
