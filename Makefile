@@ -3,7 +3,7 @@ PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 
-.PHONY: ros car-loop demo demo-quick test test-slow test-all lint bench bench-breakdown tracks-table study-tracks study-cars study-data faults results clean
+.PHONY: ros car-loop demo demo-quick test test-slow test-all lint bench bench-breakdown tracks-table study-tracks study-cars study-pace study-fullsize study-data faults results clean
 
 # PyTorch first and pinned exactly: a looser pin pulls a multi-gigabyte CUDA build.
 $(BIN)/python:
@@ -75,6 +75,17 @@ study-tracks: $(VENV)/.installed
 study-cars: $(VENV)/.installed
 	$(BIN)/rkmpc study cars --cars gym,overshoot,cheap-servo,low-grip,heavy-long,light-short \
 		--tracks builtin,../shared/tracks/centerlines --controllers pp,lmpc,lmpc-id,rkmpc --out runs/study-cars --force
+
+# Race pace (issue 14): each controller up the pace ladder on the built-in and every shared track;
+# about 5 hours on 2 cores, resumable: a stopped run picks up from runs/study-pace-journal.
+study-pace: $(VENV)/.installed
+	$(BIN)/rkmpc study pace --tracks builtin,../shared/tracks/centerlines \
+		--controllers lmpc,lmpc-id,rkmpc,nmpc-dynamic --journal runs/study-pace-journal --out runs/study-pace --force
+
+# The full-size car (issue 11) on every shared track.
+study-fullsize: $(VENV)/.installed
+	$(BIN)/rkmpc study tracks --vehicle fullsize --tracks ../shared/tracks/centerlines \
+		--controllers lmpc,lmpc-id,rkmpc --journal runs/study-fullsize-journal --out runs/study-fullsize --force
 
 # RKMPC against KMPC as the training data grow, three seeds.
 study-data: $(VENV)/.installed
