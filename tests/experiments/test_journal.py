@@ -100,3 +100,12 @@ def test_an_unreadable_entry_is_a_clear_error(tmp_path):
     entry.write_bytes(b"not a pickle")
     with pytest.raises(JournalError, match=r"journal entry .*\.pkl \(job 'sq-1'\): unreadable"):
         run_jobs([Job("sq-1", _square, (1,))], journal=journal)
+
+
+def test_track_files_are_keyed_by_their_absolute_path(tmp_path, monkeypatch):
+    from rkmpc.experiments.studies.common import track_key
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "t").mkdir()
+    assert track_key("t/../t/Oval.csv") == str(tmp_path / "t" / "Oval.csv")
+    assert track_key("builtin") == "builtin"

@@ -129,6 +129,11 @@ def track_label(spec: str) -> str:
     return Path(spec).stem if spec.lower().endswith(".csv") else spec
 
 
+def track_key(spec: str) -> str:
+    """A track spec as a journal keys it: a CSV file by its absolute path, a built-in name as it is."""
+    return str(Path(spec).resolve()) if spec.lower().endswith(".csv") else spec
+
+
 def expand_tracks(items: Iterable[str | Path]) -> tuple[str, ...]:
     """Track specs from names, CSV files and folders of CSV files (each gives its ``*.csv``, sorted)."""
     out: list[str] = []

@@ -27,6 +27,7 @@ from rkmpc.experiments.studies.common import (
     json_object,
     settings_json,
     study_versions,
+    track_key,
     track_label,
 )
 from rkmpc.experiments.studies.pace_job import PaceStep, PaceStudyConfig, job_name, pace_job
@@ -241,7 +242,7 @@ def pace_journal_settings(config: PaceStudyConfig) -> dict[str, Any]:
     """What a pace study's journal must match: its settings but the tracks, controllers and cache.
 
     A journal of the same settings is reused by a run over more tracks or controllers; the job
-    key is the track spec and the controller.
+    key is the track (a file by its absolute path) and the controller.
     """
     settings = json_object(settings_json(config, config.car_config))  # as the result file records it
     for name in ("tracks", "controllers", "cache_dir", "use_cache"):
@@ -277,7 +278,7 @@ def study_pace(
         raise ParameterError("study_pace: config must be a PaceStudyConfig")
     check_parallel(n_jobs, backend)
     keys: Sequence[tuple[str, str]] = [(t, c) for t in config.tracks for c in config.controllers]
-    jobs = [Job(job_name(t, c), pace_job, (config, t, c), key=f"{t} {c}") for t, c in keys]
+    jobs = [Job(job_name(t, c), pace_job, (config, t, c), key=f"{track_key(t)} {c}") for t, c in keys]
     t0 = time.perf_counter()
     outcomes = run_jobs(
         jobs,
