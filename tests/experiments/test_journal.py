@@ -109,3 +109,11 @@ def test_track_files_are_keyed_by_their_absolute_path(tmp_path, monkeypatch):
     (tmp_path / "t").mkdir()
     assert track_key("t/../t/Oval.csv") == str(tmp_path / "t" / "Oval.csv")
     assert track_key("builtin") == "builtin"
+
+
+def test_job_keys_must_be_unique():
+    from rkmpc.core.errors import ParameterError
+
+    jobs = [Job("a", _square, (1,), key="k"), Job("b", _square, (2,), key="k")]
+    with pytest.raises(ParameterError, match=r"job keys must be unique, repeated: \['k'\]"):
+        run_jobs(jobs)

@@ -32,6 +32,10 @@ the failure is returned as a :class:`JobOutcome` with ``ok=False`` and the
 message, which the studies use so that one bad track does not lose a long run.
 A worker process that dies (killed, out of memory) cannot be attributed to a
 job and raises :class:`JobError` in both modes.
+
+Resuming: with a :class:`~rkmpc.experiments.journal.JobJournal`, every job that finishes
+without error is kept on disk as it finishes, and the jobs a journal already holds are not run
+again (their outcomes come back with ``resumed=True``).
 """
 
 from __future__ import annotations
@@ -194,6 +198,10 @@ def _check(jobs: Sequence[Job], n_jobs: int, backend: str, on_error: str) -> Non
     dup = sorted({n for n in names if names.count(n) > 1})
     if dup:
         raise ParameterError(f"run_jobs: job names must be unique, repeated: {dup}")
+    keys = [j.key for j in jobs]
+    dup = sorted({k for k in keys if keys.count(k) > 1})
+    if dup:
+        raise ParameterError(f"run_jobs: job keys must be unique, repeated: {dup}")
 
 
 def run_jobs(

@@ -114,13 +114,13 @@ _FULLSIZE_LMPC = LMPCConfig(
     steer_weight=1000.0, steer_rate_weight=1000.0, heading_weight=20.0, speed_lead=0.5
 )
 
-# Where the residual MPC acts matters more at full scale: tuned on tracks outside the shared set,
-# position weight 4 and a low steering weight gave -44 % / -33 % (the built-in and oval tracks at
-# 1:100), but on the shared tracks the correction fed the yaw rate's 2.5 Hz mode back at 25 m/s and
-# left 7 of 19. So the steering correction's price grows with the lateral acceleration it adds
-# (``lateral_accel_weight``, ~ v**4), set so that at the top speed the ratio of position to steering
-# weights is the scaled setting's (which drives every shared track), and falls to the 1:10 car's
-# steering weight (2) in slow corners.
+# Where the residual MPC acts matters more at full scale. Tuned on tracks outside the shared set
+# (the built-in and oval tracks written out 10x), position weight 4 and steering weight 17 gave
+# -44 % / -33 %, but on the shared tracks the correction fed the yaw rate's 2.5 Hz mode back at
+# 25 m/s and left 7 of 19. So the steering correction's price grows with the lateral acceleration
+# it adds (``lateral_accel_weight``, ~ v**4), set so that at the top speed the ratio of position to
+# steering weights is the scaled setting's (which drives every shared track), and falls to the
+# 1:10 car's steering weight (2) in slow corners.
 _FULLSIZE_POSITION_WEIGHT = 4.0
 _FULLSIZE_STEER_FLOOR = 2.0
 
