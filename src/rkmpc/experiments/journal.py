@@ -32,7 +32,7 @@ from rkmpc.core.errors import OutputError
 from rkmpc.core.io import atomic_write, write_json_atomic
 from rkmpc.core.jsonutil import to_json_ready
 
-__all__ = ["JobJournal", "JournalError"]
+__all__ = ["JobJournal", "JournalError", "canonical_json"]
 
 #: Version of the journal's layout (``journal.json`` and the entries).
 JOURNAL_FORMAT = 1
@@ -42,7 +42,8 @@ class JournalError(OutputError):
     """A journal folder cannot be used: other settings, an unreadable entry, a file in the way."""
 
 
-def _canonical(value: Any) -> str:
+def canonical_json(value: Any) -> str:
+    """One text per JSON-ready value (sorted keys, no spaces): how settings and job keys compare."""
     return json.dumps(to_json_ready(value), sort_keys=True, separators=(",", ":"))
 
 
@@ -53,7 +54,7 @@ def _differences(old: Any, new: Any, where: str) -> list[str]:
         for key in sorted(set(old) | set(new)):
             out += _differences(old.get(key), new.get(key), f"{where}.{key}" if where else key)
         return out
-    return [] if _canonical(old) == _canonical(new) else [where]
+    return [] if canonical_json(old) == canonical_json(new) else [where]
 
 
 @dataclass(frozen=True)
@@ -74,7 +75,7 @@ class JobJournal:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "folder", Path(self.folder))
-        object.__setattr__(self, "settings", json.loads(_canonical(dict(self.settings))))
+        object.__setattr__(self, "settings", json.loads(canonical_json(dict(self.settings))))
 
     @property
     def _header(self) -> Path:
@@ -103,7 +104,7 @@ class JobJournal:
             raise JournalError(f"journal {self._header}: unreadable ({exc})") from exc
         if fmt != JOURNAL_FORMAT:
             raise JournalError(f"journal {self._header}: format {fmt!r}, this version reads {JOURNAL_FORMAT}")
-        if _canonical(old) != _canonical(self.settings):
+        if canonical_json(old) != canonical_json(self.settings):
             keys = _differences(old, self.settings, "")
             raise JournalError(
                 f"journal {self.folder} was written by a study with other settings "

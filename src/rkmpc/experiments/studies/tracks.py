@@ -12,7 +12,6 @@ recorded (its message in the result) and the others go on.
 from __future__ import annotations
 
 import dataclasses
-import json
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
@@ -22,10 +21,9 @@ from typing import Any
 from rkmpc.analysis.statistics import ControllerSummary, RunGroup, RunRow, summarise_runs
 from rkmpc.analysis.tables import fmt, fmt_stats, markdown
 from rkmpc.core.errors import ParameterError
-from rkmpc.core.jsonutil import to_json_ready
 from rkmpc.experiments.cache import ModelCache
 from rkmpc.experiments.compare import LEARNED_CONTROLLERS, CompareConfig, compare
-from rkmpc.experiments.journal import JobJournal
+from rkmpc.experiments.journal import JobJournal, canonical_json
 from rkmpc.experiments.models import train_excitation_model
 from rkmpc.experiments.parallel import Job, JobOutcome, run_jobs
 from rkmpc.experiments.results import TrackResult
@@ -265,10 +263,6 @@ def track_journal_settings(study: str) -> dict[str, Any]:
     return {"study": study, "versions": study_versions()}
 
 
-def _job_key(cfg: CompareConfig) -> str:
-    return json.dumps(to_json_ready(cfg), sort_keys=True, separators=(",", ":"))
-
-
 def run_track_jobs(
     named: Sequence[tuple[str, CompareConfig]],
     *,
@@ -285,7 +279,7 @@ def run_track_jobs(
 
     Returns the jobs, in the given order, and the wall time of the whole run (s, for reports).
     """
-    jobs = [Job(name, compare, (cfg,), key=_job_key(cfg)) for name, cfg in named]
+    jobs = [Job(name, compare, (cfg,), key=canonical_json(cfg)) for name, cfg in named]
     t0 = time.perf_counter()
     outcomes = run_jobs(
         jobs,
