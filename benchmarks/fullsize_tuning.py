@@ -5,9 +5,10 @@ on the shared tracks. The held-out set, written to a folder as TUM centre-line f
 
 - ``builtin-x30`` and ``oval-x30``: the built-in and oval tracks written out 10 times larger,
   points 1 m apart, and loaded at scale 3 (2.6 km and 1.7 km). A result moves by a few points
-  with how a file's points are written: the preset gives -31 % on the oval file it was tuned on,
-  -33 % on this one (the same points to 0.5 mm) and -27 % on the oval written out at 30x with
-  points 1.5 m apart. That is the noise floor of any comparison here;
+  with how a file is written and scaled. The preset gives on the oval: -31 % on the file it was
+  tuned on, -33 % on this one (the same points to 0.5 mm), -27 % with these points written out
+  at 30x and loaded at scale 1, -24 % at 30x with points 1.5 m apart. That is the noise floor
+  of any comparison here (the cause of the scale's effect is not found);
 - ``fast0`` ... ``fast3``: seeded random polygons of 6-9 corners on a 700-1600 m wide circle,
   each corner rounded with a radius of 15, 25, 40, 70 or 120 m, so that 25 m/s straights end in
   hairpins (3.0-4.0 km). These show the weave a too-cheap steering correction starts at 25 m/s.
