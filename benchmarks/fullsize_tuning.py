@@ -20,8 +20,9 @@ lateral-maximum and heading changes against the LMPC (or where the car left the 
     python benchmarks/fullsize_tuning.py OUT_DIR 'p8=position_weight:8;p16=position_weight:16' [TRACKS]
 
 with ``TRACKS`` a comma-separated subset of the names above (default: all six). The figures of
-issue 11's sixth note came from an earlier copy of this script, run with ``'flat=lateral_accel_weight:0,steer_weight:17;p8=position_weight:8'`` on all six
-and ``'p16=position_weight:16;p32=position_weight:32'`` on ``fast3,fast2,builtin-x30,oval-x30``:
+issue 11's sixth note came from an earlier copy of this script, run with the variants
+``'flat=lateral_accel_weight:0,steer_weight:17;p8=position_weight:8'`` on all six and
+``'p16=position_weight:16;p32=position_weight:32'`` on ``fast3,fast2,builtin-x30,oval-x30``:
 a higher position weight at the preset's steering price gained on each track it drove, until 32
 left ``fast2``; on the shared tracks 16 left Sakhir, so the preset stayed at 4.
 """
@@ -45,8 +46,11 @@ RADII_M = (15.0, 25.0, 40.0, 70.0, 120.0)
 
 
 def _write(path: Path, xy: np.ndarray, right: np.ndarray, left: np.ndarray) -> Path:
+    """Write a TUM centre-line file under a temporary name, then rename it to ``path``."""
     rows = np.column_stack([xy, right, left])
-    np.savetxt(path, rows, fmt="%.3f", delimiter=",", header="x_m,y_m,w_tr_right_m,w_tr_left_m")
+    partial = path.with_name(path.name + ".partial")
+    np.savetxt(partial, rows, fmt="%.3f", delimiter=",", header="x_m,y_m,w_tr_right_m,w_tr_left_m")
+    partial.replace(path)
     return path
 
 
@@ -69,8 +73,9 @@ def _rounded_polygon(corners: np.ndarray, radii: np.ndarray, step: float = 2.0) 
         start = b - d1 * radii[i] * np.tan(turn / 2)
         centre = start + side * radii[i] * np.array([-d1[1], d1[0]])
         a0 = np.arctan2(*(start - centre)[::-1])
-        for k in range(max(2, int(radii[i] * turn / step))):
-            angle = a0 + side * turn * k / max(2, int(radii[i] * turn / step))
+        count = max(2, int(radii[i] * turn / step))
+        for k in range(count):
+            angle = a0 + side * turn * k / count
             points.append(centre + radii[i] * np.array([np.cos(angle), np.sin(angle)]))
     return _resample(np.array(points), step)
 
