@@ -182,13 +182,21 @@ def test_ctrl_c_stops_every_process_and_the_node_closes_its_bag(tmp_path):
     out = tmp_path / "loop"
     env = dict(os.environ)
     env["PYTHONPATH"] = os.pathsep.join([str(SRC), *filter(None, [env.get("PYTHONPATH")])])
-    loop = subprocess.Popen(
-        [sys.executable, "-m", "rkmpc.cli", "car-loop", "--out", str(out)],
-        env=env,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-    )
+    # A shell without job control starts a background job with SIGINT ignored, and a child keeps
+    # an ignored signal ignored: the car-loop would then never see the Ctrl-C this test sends.
+    # With a Python handler here, the child starts with the default and Python turns it into
+    # KeyboardInterrupt, as at a terminal, however the test run itself was started.
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        loop = subprocess.Popen(
+            [sys.executable, "-m", "rkmpc.cli", "car-loop", "--out", str(out)],
+            env=env,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
+        )
+    finally:
+        signal.signal(signal.SIGINT, previous)
     try:
         deadline = time.monotonic() + 300
         # Until the node records: its bag's draft is there (the laps take longer than that).
