@@ -183,9 +183,8 @@ def test_ctrl_c_stops_every_process_and_the_node_closes_its_bag(tmp_path):
     env = dict(os.environ)
     env["PYTHONPATH"] = os.pathsep.join([str(SRC), *filter(None, [env.get("PYTHONPATH")])])
     # A shell without job control starts a background job with SIGINT ignored, and a child keeps
-    # an ignored signal ignored: the car-loop would then never see the Ctrl-C this test sends.
-    # With a Python handler here, the child starts with the default and Python turns it into
-    # KeyboardInterrupt, as at a terminal, however the test run itself was started.
+    # an ignored signal ignored. The car-loop sets its own handler; this also makes its start-up
+    # (before that handler) see a Ctrl-C as at a terminal, however the test run was started.
     previous = signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
         loop = subprocess.Popen(

@@ -192,14 +192,17 @@ def cmd_car_loop(args: argparse.Namespace) -> int:
         force=args.force,
         timeout=args.timeout,
     )
-    previous = signal.signal(signal.SIGTERM, _interrupt)  # SIGTERM stops the processes as Ctrl-C does
+    # Ctrl-C stops the processes, and SIGTERM as Ctrl-C does; set here, like every other command's
+    # handler, so that a car-loop started with SIGINT ignored (a background job) still stops.
+    previous = {sig: signal.signal(sig, _interrupt) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
         report = run_workflow(config, say=lambda message: print(message, flush=True))
     except KeyboardInterrupt:
         print("rkmpc: interrupted; every process of the run was stopped", file=sys.stderr)
         return 130
     finally:
-        signal.signal(signal.SIGTERM, previous)
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
     print(markdown_report(report))
     print(f"-> {args.out / 'table2.md'}, {args.out / 'table2.json'}")
     return 0
