@@ -12,6 +12,9 @@ on the shared tracks. The held-out set, written to a folder as TUM centre-line f
 - ``fast0`` ... ``fast3``: seeded random polygons of 6-9 corners on a 700-1600 m wide circle,
   each corner rounded with a radius of 15, 25, 40, 70 or 120 m, so that 25 m/s straights end in
   hairpins (3.0-4.0 km). These show the weave a too-cheap steering correction starts at 25 m/s.
+- ``kink0`` and ``kink1`` (its mirror image): a long straight into an 11 m hairpin and, 70 m on,
+  a 19 m kink the other way (3.3 km), the sequence where position weight 16 left Sakhir. Weight
+  16 completes both (-62 % and -61 %, preset -57 %), so they do not reproduce that failure.
 
 For each track the script learns the ``rkmpc`` model from two LMPC laps, drives the LMPC, then
 ``rkmpc`` with the preset's settings and with each named variant, and prints the lateral,
@@ -19,9 +22,9 @@ lateral-maximum and heading changes against the LMPC (or where the car left the 
 
     python benchmarks/fullsize_tuning.py OUT_DIR 'p8=position_weight:8;p16=position_weight:16' [TRACKS]
 
-with ``TRACKS`` a comma-separated subset of the names above (default: all six). The figures of
+with ``TRACKS`` a comma-separated subset of the names above (default: all eight). The figures of
 issue 11's sixth note came from an earlier copy of this script, run with the variants
-``'flat=lateral_accel_weight:0,steer_weight:17;p8=position_weight:8'`` on all six and
+``'flat=lateral_accel_weight:0,steer_weight:17;p8=position_weight:8'`` on the first six and
 ``'p16=position_weight:16;p32=position_weight:32'`` on ``fast3,fast2,builtin-x30,oval-x30``:
 a higher position weight at the preset's steering price gained on each track it drove, until 32
 left ``fast2``; on the shared tracks 16 left Sakhir, so the preset stayed at 4.
@@ -98,6 +101,14 @@ def _fast_circuit(seed: int) -> np.ndarray:
             return _rounded_polygon(corners, radii)
 
 
+def _kink_circuit(mirror: bool) -> np.ndarray:
+    """A long straight into an 11 m hairpin, 70 m on into a 19 m kink the other way, then back."""
+    corners = np.array([(-800.0, 0.0), (0.0, 0.0), (-23.9, 65.8), (326.0, 672.0), (-700.0, 750.0)])
+    radii = np.array([25.0, 11.0, 19.0, 40.0, 70.0])
+    xy = _rounded_polygon(corners, radii)
+    return xy * np.array([1.0, -1.0]) if mirror else xy
+
+
 def held_out_tracks(folder: Path) -> dict[str, tuple[Path, float]]:
     """Write the held-out tracks into ``folder``; their names, files and the scale to load them at."""
     folder.mkdir(parents=True, exist_ok=True)
@@ -112,6 +123,10 @@ def held_out_tracks(folder: Path) -> dict[str, tuple[Path, float]]:
         xy = _fast_circuit(200 + k)
         width = np.full(len(xy), 6.0)
         tracks[f"fast{k}"] = (_write(folder / f"fast{k}.csv", xy, width, width), 1.0)
+    for k, mirror in enumerate((False, True)):
+        xy = _kink_circuit(mirror)
+        width = np.full(len(xy), 6.0)
+        tracks[f"kink{k}"] = (_write(folder / f"kink{k}.csv", xy, width, width), 1.0)
     return tracks
 
 
