@@ -182,20 +182,13 @@ def test_ctrl_c_stops_every_process_and_the_node_closes_its_bag(tmp_path):
     out = tmp_path / "loop"
     env = dict(os.environ)
     env["PYTHONPATH"] = os.pathsep.join([str(SRC), *filter(None, [env.get("PYTHONPATH")])])
-    # A shell without job control starts a background job with SIGINT ignored, and a child keeps
-    # an ignored signal ignored. The car-loop sets its own handler; this also makes its start-up
-    # (before that handler) see a Ctrl-C as at a terminal, however the test run was started.
-    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
-    try:
-        loop = subprocess.Popen(
-            [sys.executable, "-m", "rkmpc.cli", "car-loop", "--out", str(out)],
-            env=env,
-            stdout=subprocess.PIPE,
-            stderr=subprocess.STDOUT,
-            text=True,
-        )
-    finally:
-        signal.signal(signal.SIGINT, previous)
+    loop = subprocess.Popen(
+        [sys.executable, "-m", "rkmpc.cli", "car-loop", "--out", str(out)],
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
     try:
         deadline = time.monotonic() + 300
         # Until the node records: its bag's draft is there (the laps take longer than that).

@@ -44,6 +44,7 @@ import os
 import sys
 import time
 import traceback
+from collections import Counter
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any
@@ -192,16 +193,13 @@ def _check(jobs: Sequence[Job], n_jobs: int, backend: str, on_error: str) -> Non
         raise ParameterError(f"n_jobs must be a positive integer or -1 (all cores), got {n_jobs!r}")
     if on_error not in ("raise", "record"):
         raise ParameterError(f"on_error must be 'raise' or 'record', got {on_error!r}")
-    names = [j.name for j in jobs]
     if not all(isinstance(j, Job) for j in jobs):
         raise ParameterError("run_jobs: every job must be a Job")
-    dup = sorted({n for n in names if names.count(n) > 1})
-    if dup:
-        raise ParameterError(f"run_jobs: job names must be unique, repeated: {dup}")
-    keys = [j.key for j in jobs]
-    dup = sorted({k for k in keys if keys.count(k) > 1})
-    if dup:
-        raise ParameterError(f"run_jobs: job keys must be unique, repeated: {dup}")
+    for field_name in ("name", "key"):
+        counts = Counter(getattr(j, field_name) for j in jobs)
+        dup = sorted(v for v, n in counts.items() if n > 1)
+        if dup:
+            raise ParameterError(f"run_jobs: job {field_name}s must be unique, repeated: {dup}")
 
 
 def run_jobs(
