@@ -59,7 +59,7 @@ def test_fullsize_residual_settings_grow_with_the_car():
     assert small.lateral_accel_weight == 0.0
 
 
-def test_fullsize_rkmpc_prices_steering_by_speed_as_the_scaled_settings_at_top_speed():
+def test_fullsize_rkmpc_prices_steering_by_speed_at_half_the_scaled_settings_at_top_speed():
     scaled, _ = residual_settings(fullsize(), FULLSIZE_LIMITS)
     cfg = VEHICLES["fullsize"].options_for("rkmpc")["config"]
     assert cfg == fullsize_residual(scaled, fullsize(), FULLSIZE_LIMITS)
@@ -69,7 +69,7 @@ def test_fullsize_rkmpc_prices_steering_by_speed_as_the_scaled_settings_at_top_s
         return (cfg.steer_weight + cfg.lateral_accel_weight * gain**2) / cfg.position_weight
 
     top = FULLSIZE_LIMITS.max_speed
-    assert price(top) == pytest.approx(scaled.steer_weight / scaled.position_weight)
+    assert price(top) == pytest.approx(0.5 * scaled.steer_weight / scaled.position_weight)
     assert price(0.5 * top) < 0.1 * price(top)  # corners at half the top speed: 1/16 of the price
     assert cfg.steer_weight / cfg.position_weight < 0.01 * price(top)
 

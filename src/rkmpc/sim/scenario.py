@@ -118,12 +118,14 @@ _FULLSIZE_LMPC = LMPCConfig(
 # (the built-in and oval tracks written out 10x), position weight 4 and steering weight 17 gave
 # -44 % / -33 %, but on the shared tracks the correction fed the yaw rate's 2.5 Hz mode back at
 # 25 m/s and left 7 of 19. So the steering correction's price grows with the lateral acceleration
-# it adds (``lateral_accel_weight``, ~ v**4), set so that at the top speed the ratio of position to
-# steering weights is the scaled setting's (which drives every shared track), and falls to the
-# 1:10 car's steering weight (2) in slow corners. A higher position weight at the same steering
-# price is not safe: 16 gained on the four held-out tracks of benchmarks/fullsize_tuning.py it was
-# run on (32 left one of them), but left Sakhir at 18 % of the lap.
-_FULLSIZE_POSITION_WEIGHT = 4.0
+# it adds (``lateral_accel_weight``, ~ v**4): at the top speed it is ``_FULLSIZE_TOP_PRICE`` times
+# the scaled steering weight (with position weight 4 that is the scaled setting's balance, which
+# drives every shared track), and it falls to the 1:10 car's steering weight (2) in slow corners.
+# The position weight is twice that balance: on the held-out tracks of
+# benchmarks/fullsize_tuning.py 8 gained 2-7 points on each of eight; 16 gained more there but
+# left Sakhir at 18 % of the lap, and 32 left a held-out track.
+_FULLSIZE_POSITION_WEIGHT = 8.0
+_FULLSIZE_TOP_PRICE = 4.0
 _FULLSIZE_STEER_FLOOR = 2.0
 
 
@@ -132,12 +134,13 @@ def fullsize_residual(
 ) -> ResidualMPCConfig:
     """The full-size car's ``rkmpc`` settings from the scaled ones: speed-priced steering.
 
-    At ``limits.max_speed`` the steering correction costs ``_FULLSIZE_POSITION_WEIGHT`` times the
-    scaled steering weight (the scaled balance of position and steering); below it the price
-    falls with the fourth power of the planned speed down to ``_FULLSIZE_STEER_FLOOR``.
+    At ``limits.max_speed`` the steering correction costs ``_FULLSIZE_TOP_PRICE`` times the scaled
+    steering weight; below it the price falls with the fourth power of the planned speed down to
+    ``_FULLSIZE_STEER_FLOOR``. The position weight is ``_FULLSIZE_POSITION_WEIGHT``, so at the top
+    speed position counts twice as much against steering as in the scaled settings.
     """
     gain = limits.max_speed**2 / params.wheelbase  # lateral acceleration per wheel angle, (m/s^2)/rad
-    top = _FULLSIZE_POSITION_WEIGHT * scaled.steer_weight
+    top = _FULLSIZE_TOP_PRICE * scaled.steer_weight
     return replace(
         scaled,
         position_weight=_FULLSIZE_POSITION_WEIGHT,
