@@ -26,8 +26,10 @@ with ``TRACKS`` a comma-separated subset of the names above (default: all eight)
 issue 11's sixth note came from an earlier copy of this script, run with the variants
 ``'flat=lateral_accel_weight:0,steer_weight:17;p8=position_weight:8'`` on the first six and
 ``'p16=position_weight:16;p32=position_weight:32'`` on ``fast3,fast2,builtin-x30,oval-x30``:
-a higher position weight at the preset's steering price gained on each track it drove, until 32
-left ``fast2``; on the shared tracks 16 left Sakhir, so the preset stayed at 4.
+a higher position weight at the preset's steering price gained on each track it drove,
+until 32 left ``fast2``; on the shared tracks 16 left Sakhir, so the preset stayed at 4. In the
+seventh session 8 (``'p8=position_weight:8'``, 2-7 points better on the seven tracks it drove)
+completed all shared tracks and became the preset; ``docs/cars.md`` has the other variants tried.
 """
 
 from __future__ import annotations

@@ -122,7 +122,7 @@ _FULLSIZE_LMPC = LMPCConfig(
 # the scaled steering weight (with position weight 4 that is the scaled setting's balance, which
 # drives every shared track), and it falls to the 1:10 car's steering weight (2) in slow corners.
 # The position weight is twice that balance: on the held-out tracks of
-# benchmarks/fullsize_tuning.py 8 gained 2-7 points on each of eight; 16 gained more there but
+# benchmarks/fullsize_tuning.py 8 gained 2-7 points on each of seven; 16 gained more there but
 # left Sakhir at 18 % of the lap, and 32 left a held-out track.
 _FULLSIZE_POSITION_WEIGHT = 8.0
 _FULLSIZE_TOP_PRICE = 4.0
