@@ -132,11 +132,16 @@ def held_out_tracks(folder: Path) -> dict[str, tuple[Path, float]]:
     return tracks
 
 
-def _parse(spec: str) -> dict[str, dict[str, float]]:
+def _value(text: str) -> float | bool:
+    """A field's value: ``true`` or ``false`` for a switch, otherwise a number."""
+    return text == "true" if text in ("true", "false") else float(text)
+
+
+def _parse(spec: str) -> dict[str, dict[str, float | bool]]:
     variants = {}
     for part in filter(None, spec.split(";")):
         name, _, pairs = part.partition("=")
-        variants[name] = {k: float(v) for k, v in (p.split(":") for p in pairs.split(",") if p)}
+        variants[name] = {k: _value(v) for k, v in (p.split(":") for p in pairs.split(",") if p)}
     return variants
 
 

@@ -57,6 +57,7 @@ def test_fullsize_residual_settings_grow_with_the_car():
     assert large.max_speed_correction > 5.0 * small.max_speed_correction
     assert paper.steer_weight > 50.0 * PaperResidualKoopmanMPC.default_config.steer_weight
     assert small.lateral_accel_weight == 0.0
+    assert large.slip_drift and not small.slip_drift
 
 
 def test_fullsize_rkmpc_prices_steering_by_speed_at_half_the_scaled_settings_at_top_speed():

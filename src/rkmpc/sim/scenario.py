@@ -145,6 +145,7 @@ def fullsize_residual(
         scaled,
         position_weight=_FULLSIZE_POSITION_WEIGHT,
         steer_weight=_FULLSIZE_STEER_FLOOR,
+        slip_drift=True,
         lateral_accel_weight=(top - _FULLSIZE_STEER_FLOOR) / gain**2,
     )
 

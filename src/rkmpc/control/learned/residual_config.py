@@ -42,6 +42,13 @@ class ResidualMPCConfig:
         none). A wheel-angle change moves the car by ``v**2 / L`` times as much at speed ``v``,
         so a fixed ``steer_weight`` that lets the correction act in slow corners lets it
         oscillate on fast straights; this term makes the correction's price grow with ``v**4``.
+    slip_drift : bool
+        Whether the residual MPC's prediction carries the sideways drift of the measured slip
+        angle (``rkmpc`` only). The kinematic model moves along its heading whatever its input,
+        so neither the LMPC's prediction nor the learned ``U_p`` sees a car that slides: with
+        slip angle ``beta`` (rad, velocity direction minus heading) held over the horizon, the
+        predicted position moves by ``v_r T beta`` per step across the reference heading. A
+        step whose slip angle is not measured (NaN) goes without it, and is counted.
     trust : TrustConfig
         Out-of-distribution guard: how the correction fades toward the LMPC's command when the
         state leaves the model's training range or its predictions go wrong
@@ -61,6 +68,7 @@ class ResidualMPCConfig:
     max_iterations: int = 200
     steer_rate_weight: float = 0.0
     lateral_accel_weight: float = 0.0
+    slip_drift: bool = False
     trust: TrustConfig = field(default_factory=TrustConfig)
     adaptation: AdaptationConfig = field(default_factory=AdaptationConfig)
 
@@ -74,6 +82,8 @@ class ResidualMPCConfig:
             "steer_rate_weight",
             "lateral_accel_weight",
         )
+        if not isinstance(self.slip_drift, bool):
+            raise ParameterError(f"ResidualMPCConfig.slip_drift must be True or False, got {self.slip_drift!r}")
         if self.speed_weight <= 0 or self.steer_weight <= 0:
             raise ParameterError("ResidualMPCConfig: speed_weight and steer_weight must be > 0")
         if not (self.max_speed_correction > 0 and self.max_steer_correction > 0):

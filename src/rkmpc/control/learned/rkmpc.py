@@ -30,6 +30,7 @@ changes.
 
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -232,10 +233,13 @@ class ResidualKoopmanMPC(_ResidualBase):
         # Diagonal entries of the residual Hessian that weigh the steering corrections.
         steer = 2 * np.arange(self.horizon) + 1
         self._steer_diag = (steer, steer)
+        #: Steps whose slip angle was not measured, so their prediction went without its drift.
+        self.slip_unmeasured = 0
 
     def _reset(self) -> None:
         super()._reset()
         self._last = None
+        self.slip_unmeasured = 0
         if self._rls is not None:
             self._rls.reset()
             self._refresh_prediction()
@@ -244,7 +248,24 @@ class ResidualKoopmanMPC(_ResidualBase):
         out = super().diagnostics()
         if self._rls is not None:
             out.update(rls_updates=float(self._rls.updates), rls_skipped=float(self._rls.skipped))
+        if self.config.slip_drift:
+            out["slip_unmeasured"] = float(self.slip_unmeasured)
         return out
+
+    def _slip_drift(self, observation: Observation, pred: Prediction) -> np.ndarray | float:
+        """How a slip angle held over the horizon moves the predicted deviations, shape (3N,), or 0.
+
+        The heading column of the LMPC's ``Phi`` holds, in its position rows, the sums of
+        ``v_r T (-sin, cos)(theta_r)``: the displacement of a heading offset that never turns the
+        car, which is what a car sliding at a fixed angle to its heading adds.
+        """
+        beta = observation.slip_angle
+        if not math.isfinite(beta):
+            self.slip_unmeasured += 1
+            return 0.0
+        drift = pred.Phi[:, 2] * beta
+        drift[2::3] = 0.0
+        return drift
 
     def _refresh_prediction(self) -> None:
         if self._rls is None:
@@ -287,6 +308,8 @@ class ResidualKoopmanMPC(_ResidualBase):
         self._z0 = np.asarray(z0, dtype=float)
         # Kinematic deviations when the car's effective input is U_p(U_lmpc + dU).
         e0 = pred.Phi @ pred.xi0 + pred.Gamma @ (self._Mz @ z0 + self._Mu @ plan - pred.u_ref.ravel())
+        if self.config.slip_drift:
+            e0 += self._slip_drift(observation, pred)
         GM = pred.Gamma @ self._Mu
         GtQ = (self._q[:, None] * GM).T
         H = GtQ @ GM
@@ -328,6 +351,8 @@ class PaperResidualKoopmanMPC(_ResidualBase):
             raise ParameterError(
                 "rkmpc-paper: lateral_accel_weight must be 0 (its residual QP keeps one Hessian)"
             )
+        if self.config.slip_drift:
+            raise ParameterError("rkmpc-paper: slip_drift must be False (its model predicts the pose itself)")
         m = self.model
         self._Mz, self._Mu = lifted_prediction(m.A_, m.B_, m.C_[:3], None, self.horizon, first=1)
         # The car sits at the origin of its own frame: the features of any observation are the pose 0.
