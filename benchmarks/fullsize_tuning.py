@@ -30,6 +30,8 @@ a higher position weight at the preset's steering price gained on each track it 
 until 32 left ``fast2``; on the shared tracks 16 left Sakhir, so the preset stayed at 4. In the
 seventh session 8 (``'p8=position_weight:8'``, 2-7 points better on the seven tracks it drove)
 completed all shared tracks and became the preset; ``docs/cars.md`` has the other variants tried.
+Then the slip drift (``ResidualMPCConfig.slip_drift``) joined the preset: ``'nodrift=slip_drift:false'``
+drives without it (``true``/``false`` set a switch).
 """
 
 from __future__ import annotations

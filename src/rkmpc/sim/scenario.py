@@ -137,7 +137,9 @@ def fullsize_residual(
     At ``limits.max_speed`` the steering correction costs ``_FULLSIZE_TOP_PRICE`` times the scaled
     steering weight; below it the price falls with the fourth power of the planned speed down to
     ``_FULLSIZE_STEER_FLOOR``. The position weight is ``_FULLSIZE_POSITION_WEIGHT``, so at the top
-    speed position counts twice as much against steering as in the scaled settings.
+    speed position counts twice as much against steering as in the scaled settings. The residual
+    MPC's prediction carries the sideways drift of the measured slip angle (``slip_drift``): the
+    full-size car slides in slow corners, which the kinematic model cannot predict.
     """
     gain = limits.max_speed**2 / params.wheelbase  # lateral acceleration per wheel angle, (m/s^2)/rad
     top = _FULLSIZE_TOP_PRICE * scaled.steer_weight
