@@ -83,7 +83,9 @@ class ResidualMPCConfig:
             "lateral_accel_weight",
         )
         if not isinstance(self.slip_drift, bool):
-            raise ParameterError(f"ResidualMPCConfig.slip_drift must be True or False, got {self.slip_drift!r}")
+            raise ParameterError(
+                f"ResidualMPCConfig.slip_drift must be True or False, got {self.slip_drift!r}"
+            )
         if self.speed_weight <= 0 or self.steer_weight <= 0:
             raise ParameterError("ResidualMPCConfig: speed_weight and steer_weight must be > 0")
         if not (self.max_speed_correction > 0 and self.max_steer_correction > 0):
