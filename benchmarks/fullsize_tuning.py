@@ -42,6 +42,7 @@ from pathlib import Path
 
 import numpy as np
 
+from rkmpc.core.io import atomic_write
 from rkmpc.experiments.models import ModelPlan, learn_models
 from rkmpc.experiments.runs import run_controller
 from rkmpc.sim.run import RunSpec
@@ -53,11 +54,10 @@ RADII_M = (15.0, 25.0, 40.0, 70.0, 120.0)
 
 
 def _write(path: Path, xy: np.ndarray, right: np.ndarray, left: np.ndarray) -> Path:
-    """Write a TUM centre-line file under a temporary name, then rename it to ``path``."""
+    """Write a TUM centre-line file (under a temporary name, renamed when complete)."""
     rows = np.column_stack([xy, right, left])
-    partial = path.with_name(path.name + ".partial")
-    np.savetxt(partial, rows, fmt="%.3f", delimiter=",", header="x_m,y_m,w_tr_right_m,w_tr_left_m")
-    partial.replace(path)
+    with atomic_write(path) as handle:
+        np.savetxt(handle, rows, fmt="%.3f", delimiter=",", header="x_m,y_m,w_tr_right_m,w_tr_left_m")
     return path
 
 
