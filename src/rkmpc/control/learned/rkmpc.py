@@ -252,8 +252,8 @@ class ResidualKoopmanMPC(_ResidualBase):
             out["slip_unmeasured"] = float(self.slip_unmeasured)
         return out
 
-    def _slip_drift(self, observation: Observation, pred: Prediction) -> np.ndarray | float:
-        """How a slip angle held over the horizon moves the predicted deviations, shape (3N,), or 0.
+    def _add_slip_drift(self, e0: np.ndarray, observation: Observation, pred: Prediction) -> None:
+        """Add to the predicted deviations ``e0`` (3N,) how a slip angle held over the horizon moves them.
 
         The heading column of the LMPC's ``Phi`` holds, in its position rows, the sums of
         ``v_r T (-sin, cos)(theta_r)``: the displacement of a heading offset that never turns the
@@ -262,10 +262,9 @@ class ResidualKoopmanMPC(_ResidualBase):
         beta = observation.slip_angle
         if not math.isfinite(beta):
             self.slip_unmeasured += 1
-            return 0.0
-        drift = pred.Phi[:, 2] * beta
-        drift[2::3] = 0.0
-        return drift
+            return
+        for row in (0, 1):  # x and y of every step; the heading rows are not moved
+            e0[row::3] += beta * pred.Phi[row::3, 2]
 
     def _refresh_prediction(self) -> None:
         if self._rls is None:
@@ -309,7 +308,7 @@ class ResidualKoopmanMPC(_ResidualBase):
         # Kinematic deviations when the car's effective input is U_p(U_lmpc + dU).
         e0 = pred.Phi @ pred.xi0 + pred.Gamma @ (self._Mz @ z0 + self._Mu @ plan - pred.u_ref.ravel())
         if self.config.slip_drift:
-            e0 += self._slip_drift(observation, pred)
+            self._add_slip_drift(e0, observation, pred)
         GM = pred.Gamma @ self._Mu
         GtQ = (self._q[:, None] * GM).T
         H = GtQ @ GM
