@@ -50,6 +50,10 @@ class Observation:
         Measured front wheel angle (rad); NaN when not measured.
     time : float, optional
         Time stamp (s).
+    pose_time : float, optional
+        When the pose (``x``, ``y``, ``yaw``) was measured (s, on the clock of ``time``); NaN when
+        it is as current as ``time``. A localiser's pose comes late and at its own rate: a
+        ``pose_time`` that has not changed since the last observation means no new pose.
     """
 
     x: float
@@ -60,6 +64,7 @@ class Observation:
     slip_angle: float = math.nan
     steer_angle: float = math.nan
     time: float = 0.0
+    pose_time: float = math.nan
 
     def as_array(self) -> np.ndarray:
         """``[x, y, yaw, speed, yaw_rate, slip_angle, steer_angle]`` as a float array, shape (7,)."""
