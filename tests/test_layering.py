@@ -22,6 +22,7 @@ LAYERS = (
     "vehicle",
     "learning",
     "control",
+    "config",
     "sim",
     "envs",
     "analysis",
@@ -48,7 +49,7 @@ CONFINED = {
     "std_msgs": ("rkmpc.ros.",),
     "diagnostic_msgs": ("rkmpc.ros.",),
     "builtin_interfaces": ("rkmpc.ros.",),
-    "yaml": ("rkmpc.ros.config",),
+    "yaml": ("rkmpc.config.loader",),
 }
 
 

@@ -66,7 +66,7 @@ def test_random_cars_are_reproducible_and_vary() -> None:
 
 
 def test_unknown_car_lists_the_known_ones() -> None:
-    with pytest.raises(ParameterError, match=r"unknown car 'nope'.*gym.*random-<seed>"):
+    with pytest.raises(ParameterError, match=r"unknown zoo car 'nope'.*gym.*random-<seed>"):
         get_car("nope")
     with pytest.raises(ParameterError):
         get_car("random-x")

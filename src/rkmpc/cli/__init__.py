@@ -241,8 +241,10 @@ def _cmd_collect(args: argparse.Namespace) -> int:
         log = StepLog.from_csv(args.from_log)
         data = TransitionDataset.from_log(log, metadata={**log.metadata, "source": str(args.from_log)})
     else:
+        from rkmpc.sim.scenario import Scenario
+
         car = car_config(args)
-        scenario = car.scenario(args.track, scale=args.scale, raceline=args.raceline)
+        scenario = Scenario.from_car(car, args.track, scale=args.scale, raceline=args.raceline)
         seed = car.training.seed
         if args.excitation:
             data = collect_excitation(scenario, n_samples=args.excitation, seed=seed)

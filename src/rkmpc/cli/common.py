@@ -6,12 +6,11 @@ import argparse
 import math
 import os
 from collections.abc import Callable
-from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from rkmpc.sim.carfile import CarConfig
+    from rkmpc.config.car import CarConfig
 
 __all__ = [
     "CACHE_HELP",
@@ -128,12 +127,12 @@ def car_config(args: argparse.Namespace) -> CarConfig:
     zoo car (``--car``) given on the command line replace the file's; the pace
     (``--lateral-accel``, ``--max-speed``) is applied last (:meth:`SpeedLimits.at_pace`).
     """
-    from rkmpc.sim.carfile import CarConfig, load_car_config
+    from rkmpc.config.loader import load_car_config, load_preset
 
     given = getattr(args, "config", None)
     vehicle = getattr(args, "vehicle", None)
     if given is None:
-        config = CarConfig.from_preset(vehicle or "f1tenth")
+        config = load_preset(vehicle or "f1tenth")
     else:
         config = load_car_config(given)
         if vehicle is not None and vehicle != config.preset:
@@ -142,11 +141,10 @@ def car_config(args: argparse.Namespace) -> CarConfig:
             )
     names = ("seed", "epochs", "data_laps", "kmpc_samples")
     changes = {name: getattr(args, name) for name in names if getattr(args, name, None) is not None}
-    if changes:
-        config = replace(config, training=replace(config.training, **changes))
+    config = config.with_training(**changes)
     car = getattr(args, "car", None)
     if car is not None:
-        config = replace(config, car=car)
+        config = config.with_zoo_car(car)
     return config.at_pace(getattr(args, "lateral_accel", None), getattr(args, "max_speed", None))
 
 

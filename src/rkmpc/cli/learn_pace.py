@@ -68,47 +68,18 @@ def learn_pace_config(args: argparse.Namespace) -> LearnPaceConfig:
     car = car_config(args)
     return LearnPaceConfig(
         track=args.track,
+        car=car,
         controller=args.controller,
         paces=ladder_from_args(args, car),
-        seed=car.training.seed,
         scale=args.scale,
-        vehicle=car.preset,
-        laps=car.training.data_laps,
-        epochs=car.training.epochs,
         max_iterations=args.max_iterations,
         cache_dir=None if args.cache_dir is None else str(args.cache_dir),
-        car_config=car,
     )
 
 
 def cmd_learn_pace(args: argparse.Namespace) -> int:
-    from rich.console import Console
+    from rkmpc.cli.study import run_study_command
+    from rkmpc.experiments.studies.learn_pace import LearnPaceStudy
 
-    from rkmpc.analysis.plots import save_figure
-    from rkmpc.analysis.study_plots import plot_learn_pace
-    from rkmpc.core.io import check_output_folder, output_folder, write_json_atomic, write_text_atomic
-    from rkmpc.experiments.parallel import limit_threads
-    from rkmpc.experiments.studies.learn_pace import learn_pace
-    from rkmpc.experiments.studies.pace_rules import pace_label
-
-    markers = ("learn_pace.json",)
-    check_output_folder(args.out, force=args.force, markers=markers)
-    limit_threads()
-    config = learn_pace_config(args)
-    result = learn_pace(config, say=Console(stderr=True).print)
-    text = result.to_markdown()
-    with output_folder(args.out, force=args.force, markers=markers) as out:
-        write_json_atomic(out / "learn_pace.json", result.to_json())
-        write_text_atomic(out / "learn_pace.md", text)
-    print(text)
-    its = result.iterations
-    figure = plot_learn_pace(
-        [pace_label(it.pace) for it in its],
-        [it.metrics.lap_time_s for it in its],
-        [it.clean for it in its],
-        [it.lmpc_metrics.lap_time_s if it.lmpc_clean else None for it in its],
-        [it.metrics.lateral_error_mean_m for it in its],
-        f"learning to race: {args.controller} on {result.to_json()['track']}, seed {config.seed}",
-    )
-    save_figure(figure, args.out / "learn_pace.png")
-    return 0
+    args.jobs, args.backend, args.address = 1, "loky", None
+    return run_study_command(args, LearnPaceStudy(learn_pace_config(args)), "learn_pace")

@@ -20,7 +20,23 @@ _ROS_ARGS_HELP = "everything after it goes to ROS (e.g. -p safety.odometry_timeo
 def add_ros_parsers(sub: Any) -> None:
     """Add ``node`` and ``sim-node`` to the subcommands ``sub``."""
     node = sub.add_parser("node", help="drive a car over ROS 2 with any controller")
-    node.add_argument("--config", required=True, type=Path, help="the car's YAML file (docs/car.md)")
+    node.add_argument(
+        "--config",
+        required=True,
+        type=Path,
+        metavar="CAR.toml",
+        help="the car file every command reads (TOML, or YAML), with its [ros] section (docs/car.md)",
+    )
+    node.add_argument("--track", default="builtin", help="built-in track name or TUM centre-line CSV")
+    node.add_argument(
+        "--raceline", default=None, help="TUM race-line CSV to track instead of the centre line"
+    )
+    node.add_argument("--scale", type=float, default=None, help="scale of track files (default: the car's)")
+    node.add_argument("--controller", default="lmpc", help="controller to drive with (default: lmpc)")
+    node.add_argument("--model", default=None, help="model file of a learned controller")
+    node.add_argument(
+        "--allow-mismatch", action="store_true", help="drive a model made for another car or period (warned)"
+    )
     node.add_argument(
         "--out", type=Path, default=None, help="folder for what the node decided, written at exit"
     )
@@ -124,8 +140,19 @@ def cmd_node(args: argparse.Namespace) -> int:
         from rkmpc.ros.node import run_node
     except ImportError as exc:
         raise _missing_ros(exc) from None
+    from rkmpc.ros.config import NodeTask
+
+    task = NodeTask(
+        track=args.track,
+        raceline=args.raceline,
+        scale=args.scale,
+        controller=args.controller,
+        model=args.model,
+        allow_mismatch=args.allow_mismatch,
+    )
     return run_node(
         args.config,
+        task,
         out=args.out,
         record=args.record,
         record_storage=args.record_storage,

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -21,8 +22,19 @@ from rkmpc.cli.common import (
 if TYPE_CHECKING:
     from rkmpc.experiments.studies.data_job import DataStudyConfig
     from rkmpc.experiments.studies.pace_job import PaceStudyConfig
+    from rkmpc.experiments.studies.tracks import TracksStudyConfig
+    from rkmpc.experiments.study import Study
 
-__all__ = ["add_study_parser", "cmd_study", "data_study_config", "pace_study_config"]
+__all__ = [
+    "STUDIES",
+    "add_study_parser",
+    "cmd_study",
+    "data_study_config",
+    "pace_study_config",
+    "run_study_command",
+    "study_progress",
+    "tracks_config",
+]
 
 
 JOURNAL_HELP = (
@@ -119,7 +131,9 @@ def add_study_parser(sub: Any) -> None:
     pace.add_argument("--journal", type=Path, default=None, help=JOURNAL_HELP)
 
 
-def _study_progress(console: Any) -> Any:
+def study_progress(console: Any) -> Any:
+    """A progress callback that prints one line per finished job."""
+
     def progress(outcome: Any, done: int, total: int) -> None:
         state = f"{outcome.seconds:.0f} s" if outcome.ok else f"FAILED: {outcome.error}"
         if outcome.resumed:
@@ -127,6 +141,40 @@ def _study_progress(console: Any) -> Any:
         console.print(f"[{done}/{total}] {outcome.name}: {state}")
 
     return progress
+
+
+def _cache_dir(args: argparse.Namespace) -> str | None:
+    return None if args.cache_dir is None else str(args.cache_dir)
+
+
+def tracks_config(args: argparse.Namespace) -> TracksStudyConfig:
+    """The tracks study's settings: the options, then the car file, then the preset."""
+    from rkmpc.experiments.studies.common import expand_tracks
+    from rkmpc.experiments.studies.tracks import TracksStudyConfig
+
+    names = split_controllers(args.controllers)
+    return TracksStudyConfig(
+        tracks=expand_tracks(args.tracks.split(",")),
+        car=car_config(args),
+        controllers=names,
+        seeds=ints(args.seeds, "--seeds"),
+        scale=args.scale,
+        baseline="lmpc" if "lmpc" in names else None,
+        fault=getattr(args, "fault", None),
+        cache_dir=_cache_dir(args),
+    )
+
+
+def _tracks(args: argparse.Namespace) -> Study[Any]:
+    from rkmpc.experiments.studies.tracks import TracksStudy
+
+    return TracksStudy(tracks_config(args))
+
+
+def _cars(args: argparse.Namespace) -> Study[Any]:
+    from rkmpc.experiments.studies.cars import CarsStudy, CarsStudyConfig
+
+    return CarsStudy(CarsStudyConfig(cars=args.cars.split(","), tracks=tracks_config(args)))
 
 
 def pace_study_config(args: argparse.Namespace) -> PaceStudyConfig:
@@ -137,112 +185,79 @@ def pace_study_config(args: argparse.Namespace) -> PaceStudyConfig:
     car = car_config(args)
     return PaceStudyConfig(
         tracks=expand_tracks(args.tracks.split(",")),
+        car=car,
         controllers=tuple(split_controllers(args.controllers)),
         paces=ladder_from_args(args, car),
-        seed=car.training.seed,
         scale=args.scale,
-        vehicle=car.preset,
-        laps=car.training.data_laps,
-        epochs=car.training.epochs,
-        kmpc_samples=car.training.kmpc_samples,
-        cache_dir=None if args.cache_dir is None else str(args.cache_dir),
-        car_config=car,
+        cache_dir=_cache_dir(args),
     )
+
+
+def _pace(args: argparse.Namespace) -> Study[Any]:
+    from rkmpc.experiments.studies.pace import PaceStudy
+
+    return PaceStudy(pace_study_config(args))
 
 
 def data_study_config(args: argparse.Namespace) -> DataStudyConfig:
     """The settings of ``study data``: the options, then the car file, then the preset."""
     from rkmpc.experiments.studies.data_job import DataStudyConfig
 
-    car = car_config(args)  # the seeds are the study's (--seeds), the data sizes its own
     return DataStudyConfig(
         track=args.track,
+        car=car_config(args),  # the seeds are the study's (--seeds), the data sizes its own
         scale=args.scale,
-        vehicle=car.preset,
         sizes=ints(args.sizes, "--sizes"),
         seeds=ints(args.seeds, "--seeds"),
         controllers=tuple(split_controllers(args.controllers)),
-        epochs=car.training.epochs,
-        car_config=car,
     )
 
 
-def cmd_study(args: argparse.Namespace) -> int:
+def _data(args: argparse.Namespace) -> Study[Any]:
+    from rkmpc.experiments.studies.data import DataStudy
+
+    return DataStudy(data_study_config(args))
+
+
+#: The studies by sub-command: each builds its :class:`~rkmpc.experiments.study.Study` from the options.
+STUDIES: dict[str, Callable[[argparse.Namespace], Study[Any]]] = {
+    "tracks": _tracks,
+    "cars": _cars,
+    "pace": _pace,
+    "data": _data,
+}
+
+
+def run_study_command(args: argparse.Namespace, study: Study[Any], stem: str) -> int:
+    """Run a study into ``--out``: ``STEM.json``, ``STEM.md``, ``STEM.png``; the table on stdout."""
     from rich.console import Console
 
     from rkmpc.analysis.plots import save_figure
-    from rkmpc.analysis.study_plots import plot_cars_study, plot_data_study, plot_pace_study
     from rkmpc.core.io import check_output_folder, output_folder, write_json_atomic, write_text_atomic
-    from rkmpc.experiments.journal import JobJournal
     from rkmpc.experiments.parallel import limit_threads
-    from rkmpc.experiments.studies.cars import CarsStudyConfig, study_cars
-    from rkmpc.experiments.studies.common import expand_tracks
-    from rkmpc.experiments.studies.data import study_data
-    from rkmpc.experiments.studies.pace import pace_journal_settings, study_pace
-    from rkmpc.experiments.studies.tracks import TracksStudyConfig, study_tracks, track_journal_settings
+    from rkmpc.experiments.study import Parallel, run_study
 
+    markers = (f"{stem}.json",)
     # The folder is checked before hours of runs, and made when they are done.
-    check_output_folder(args.out, force=args.force, markers=(f"study_{args.study}.json",))
-    journal = getattr(args, "journal", None)
-    limit_threads()  # this process trains too (the KMPC model, or jobs when --jobs 1)
+    check_output_folder(args.out, force=args.force, markers=markers)
+    parallel = Parallel(n_jobs=args.jobs, backend=args.backend, address=args.address)
+    limit_threads()  # this process trains too (the shared models, or jobs when --jobs 1)
     console = Console(stderr=True)
-    where = {"n_jobs": args.jobs, "backend": args.backend, "address": args.address}
-    result: Any
-    if args.study in ("tracks", "cars"):
-        names = split_controllers(args.controllers)
-        car = car_config(args)  # its seed is each job's
-        options: dict[str, Any] = {
-            "kmpc_samples": car.training.kmpc_samples,
-            "epochs": car.training.epochs,
-            "laps": car.training.data_laps,
-            "limits": car.limits,
-            "car_config": car,
-        }
-        if args.study == "tracks":
-            options["fault"] = args.fault
-            if car.car is not None:  # the cars study drives its own cars
-                options["car"] = car.car
-        if args.cache_dir is not None:
-            options["cache_dir"] = str(args.cache_dir)
-        config = TracksStudyConfig(
-            tracks=expand_tracks(args.tracks.split(",")),
-            controllers=names,
-            seeds=ints(args.seeds, "--seeds"),
-            scale=args.scale if args.study == "tracks" else None,
-            vehicle=car.preset,
-            baseline="lmpc" if "lmpc" in names else None,
-            study_options=options,
-        )
-        kept = None if journal is None else JobJournal(journal, track_journal_settings(args.study)).open()
-        if args.study == "tracks":
-            result = study_tracks(
-                config, **where, progress=_study_progress(console), say=console.print, journal=kept
-            )
-        else:
-            cars_config = CarsStudyConfig(cars=args.cars, tracks=config)
-            result = study_cars(
-                cars_config, **where, progress=_study_progress(console), say=console.print, journal=kept
-            )
-    elif args.study == "pace":
-        pace_config = pace_study_config(args)
-        kept = None if journal is None else JobJournal(journal, pace_journal_settings(pace_config)).open()
-        result = study_pace(pace_config, **where, progress=_study_progress(console), journal=kept)
-    else:
-        result = study_data(data_study_config(args), **where, progress=_study_progress(console))
-    stem = f"study_{args.study}"
+    journal = getattr(args, "journal", None)
+    result = run_study(
+        study, parallel=parallel, journal=journal, progress=study_progress(console), say=console.print
+    )
     text = result.to_markdown()
-    with output_folder(args.out, force=args.force, markers=(f"{stem}.json",)) as out:
+    with output_folder(args.out, force=args.force, markers=markers) as out:
         write_json_atomic(out / f"{stem}.json", result.to_json())
         write_text_atomic(out / f"{stem}.md", text)
     print(text)
     # The figure last, into the finished folder: a figure that fails must not lose hours of runs.
-    if args.study == "cars":
-        save_figure(plot_cars_study(*result.plot_data()), args.out / "study_cars.png")
-    elif args.study == "data":
-        title = f"training data volume, {args.track}"
-        figure = plot_data_study(result.series(), result.baseline.lateral_error_mean_m, title)
-        save_figure(figure, args.out / "study_data.png")
-    elif args.study == "pace":
-        title = f"pace study, seed {result.config.seed}: clean laps up the pace ladder"
-        save_figure(plot_pace_study(result.series(), title), args.out / "study_pace.png")
+    figure = result.figure()
+    if figure is not None:
+        save_figure(figure, args.out / f"{stem}.png")
     return 0
+
+
+def cmd_study(args: argparse.Namespace) -> int:
+    return run_study_command(args, STUDIES[args.study](args), f"study_{args.study}")

@@ -29,7 +29,7 @@ from abc import ABC, abstractmethod
 from collections import Counter
 from dataclasses import dataclass
 from time import perf_counter
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from rkmpc.core.angles import wrap_scalar
 from rkmpc.core.errors import ParameterError, raise_if_interrupted
@@ -39,6 +39,7 @@ from rkmpc.core.observation import Command, Observation
 if TYPE_CHECKING:
     from rkmpc.track.projection import Projection
     from rkmpc.track.reference import Reference
+    from rkmpc.vehicle.params import VehicleParams
 
 __all__ = [
     "OPTIONAL_FIELDS",
@@ -179,6 +180,40 @@ class Controller(ABC):
     dt: float | None = None
     #: Optional observation fields (:data:`OPTIONAL_FIELDS`) this controller needs measured.
     measured_fields: tuple[str, ...] = ()
+    #: The field of :class:`~rkmpc.control.settings.ControllerSettings` it is configured by (or None).
+    settings_field: str | None = None
+
+    @classmethod
+    def from_settings(
+        cls, reference: Reference, vehicle: VehicleParams, settings: Any, model: object = None
+    ) -> Controller:
+        """This controller for a car: its field of ``settings`` (:attr:`settings_field`) and, for a
+        learned controller, its ``model`` (subclasses that take one override this).
+
+        ``settings`` is the car's :class:`rkmpc.control.settings.ControllerSettings` (a module above
+        this one: it holds the settings classes of the controllers built on this base).
+
+        Raises
+        ------
+        ParameterError
+            When a model is given to a controller that takes none.
+        """
+        if model is not None:
+            raise ParameterError(f"controller {cls.name!r} takes no model")
+        build: Any = cls  # every registered controller takes (reference, vehicle[, its settings])
+        made: Controller
+        if cls.settings_field is None:
+            made = build(reference, vehicle)
+        else:
+            made = build(reference, vehicle, getattr(settings, cls.settings_field))
+        return made
+
+    @classmethod
+    def require_model(cls, model: object) -> object:
+        """``model``, or ParameterError when it is None (a learned controller needs one)."""
+        if model is None:
+            raise ParameterError(f"controller {cls.name!r} needs model= (its learned or identified model)")
+        return model
 
     def __init__(
         self,

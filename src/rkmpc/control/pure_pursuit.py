@@ -57,6 +57,7 @@ class PurePursuit(Controller):
     """
 
     name = "pp"
+    settings_field = "pp"
 
     def __init__(
         self, reference: Reference, vehicle: VehicleParams, config: PurePursuitConfig | None = None

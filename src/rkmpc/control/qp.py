@@ -22,6 +22,8 @@ import numpy as np
 from scipy.linalg.lapack import dpotrf as _dpotrf
 from scipy.linalg.lapack import dtrtri as _dtrtri
 
+from rkmpc.core.registry import Registry
+
 
 @dataclass(frozen=True)
 class QPResult:
@@ -387,7 +389,7 @@ class OsqpQP(DenseQP):
 
 
 #: QP backends by name.
-QP_SOLVERS: dict[str, Callable[..., DenseQP]] = {"daqp": DaqpQP, "osqp": OsqpQP}
+QP_SOLVERS: Registry[Callable[..., DenseQP]] = Registry("QP solver", {"daqp": DaqpQP, "osqp": OsqpQP})
 
 
 def make_qp(name: str, **options: int | float) -> DenseQP:
@@ -400,8 +402,4 @@ def make_qp(name: str, **options: int | float) -> DenseQP:
     **options
         Passed to the backend (for example ``max_iterations``).
     """
-    try:
-        factory = QP_SOLVERS[name]
-    except KeyError:
-        raise ValueError(f"unknown QP solver {name!r}; known: {sorted(QP_SOLVERS)}") from None
-    return factory(**options)
+    return QP_SOLVERS[name](**options)

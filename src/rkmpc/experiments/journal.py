@@ -11,31 +11,31 @@ What must match for an outcome to be reused is the study's *settings* (a JSON-re
 study builds: its configuration without the list of jobs, and the package's version). The
 journal records them in ``journal.json`` when it is first opened; opening it with other settings
 raises :class:`JournalError` naming the keys that differ, so results of other settings are never
-mixed in. Each job is stored under its key (by default its name) in ``<sha256>.pkl``, written to
+mixed in. Each job is stored under its key (by default its name) in ``<sha256>.json``, written to
 a temporary name and renamed, so an interrupted write leaves no half entry.
 
-Entries are pickles of :class:`~rkmpc.experiments.parallel.JobOutcome`: open only journals this
-package wrote (as with any pickle).
+Entries are JSON: the job's outcome with its value encoded by the study (``encode``) and decoded
+when read (``decode``); nothing in a journal can run code. Journals of format 1 held pickles: they
+are refused, never unpickled.
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
-import pickle
-from collections.abc import Mapping
-from dataclasses import dataclass
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from rkmpc.core.errors import OutputError
-from rkmpc.core.io import atomic_write, write_json_atomic
+from rkmpc.core.io import write_json_atomic
 from rkmpc.core.jsonutil import to_json_ready
 
 __all__ = ["JobJournal", "JournalError", "canonical_json"]
 
-#: Version of the journal's layout (``journal.json`` and the entries).
-JOURNAL_FORMAT = 1
+#: Version of the journal's layout (``journal.json`` and the entries); 1 held pickles.
+JOURNAL_FORMAT = 2
 
 
 class JournalError(OutputError):
@@ -68,10 +68,20 @@ class JobJournal:
     settings : mapping
         JSON-ready description of everything that makes a job's outcome what it is, apart from
         the job itself (whose key names it).
+    encode : callable
+        A job's value as JSON-ready data (default: :func:`~rkmpc.core.jsonutil.to_json_ready`).
+    decode : callable
+        The value back from that data (default: as read).
+    outcome : callable
+        Makes an outcome from its fields (:class:`rkmpc.experiments.parallel.JobOutcome`; given by
+        the caller, this module sits below the one that defines it).
     """
 
     folder: Path
     settings: Mapping[str, Any]
+    encode: Callable[[Any], Any] = field(default=to_json_ready, compare=False)
+    decode: Callable[[Any], Any] = field(default=lambda data: data, compare=False)
+    outcome: Callable[..., Any] = field(default=dict, compare=False)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "folder", Path(self.folder))
@@ -102,6 +112,11 @@ class JobJournal:
             fmt = header["format"]
         except (OSError, ValueError, KeyError, TypeError) as exc:
             raise JournalError(f"journal {self._header}: unreadable ({exc})") from exc
+        if fmt == 1:
+            raise JournalError(
+                f"journal {self.folder} was written by an older rkmpc as pickles, which are never read "
+                "(they could run code); give another journal folder or delete this one"
+            )
         if fmt != JOURNAL_FORMAT:
             raise JournalError(f"journal {self._header}: format {fmt!r}, this version reads {JOURNAL_FORMAT}")
         if canonical_json(old) != canonical_json(self.settings):
@@ -113,7 +128,7 @@ class JobJournal:
         return self
 
     def _entry(self, key: str) -> Path:
-        return self.folder / f"{hashlib.sha256(key.encode()).hexdigest()[:32]}.pkl"
+        return self.folder / f"{hashlib.sha256(key.encode()).hexdigest()[:32]}.json"
 
     def load(self, key: str) -> Any:
         """The outcome stored under ``key`` (a :class:`~rkmpc.experiments.parallel.JobOutcome`), or None.
@@ -121,15 +136,23 @@ class JobJournal:
         Raises
         ------
         JournalError
-            The entry cannot be read or belongs to another key.
+            The entry cannot be read, belongs to another key or its value does not decode.
         """
         path = self._entry(key)
         if not path.is_file():
             return None
         try:
-            with path.open("rb") as handle:
-                stored = pickle.load(handle)
-            stored_key, outcome = stored["key"], stored["outcome"]
+            stored = json.loads(path.read_text(encoding="utf-8"))
+            stored_key, data = stored["key"], stored["outcome"]
+            outcome = self.outcome(
+                name=str(data["name"]),
+                index=int(data["index"]),
+                ok=bool(data["ok"]),
+                value=self.decode(data["value"]),
+                error=data["error"],
+                traceback=data["traceback"],
+                seconds=float(data["seconds"]),
+            )
         except Exception as exc:
             raise JournalError(f"journal entry {path} (job {key!r}): unreadable ({exc})") from exc
         if stored_key != key:
@@ -137,6 +160,14 @@ class JobJournal:
         return outcome
 
     def save(self, key: str, outcome: Any) -> None:
-        """Store a finished job's outcome (picklable) under ``key``."""
-        with atomic_write(self._entry(key), "wb") as handle:
-            pickle.dump({"key": key, "outcome": outcome}, handle, protocol=pickle.HIGHEST_PROTOCOL)
+        """Store a finished job's outcome under ``key``, its value encoded as JSON."""
+        entry = {
+            "name": outcome.name,
+            "index": outcome.index,
+            "ok": outcome.ok,
+            "value": self.encode(outcome.value),
+            "error": outcome.error,
+            "traceback": outcome.traceback,
+            "seconds": outcome.seconds,
+        }
+        write_json_atomic(self._entry(key), {"key": key, "outcome": entry})

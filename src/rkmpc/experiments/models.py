@@ -1,10 +1,11 @@
-"""The models of a comparison: collect the data, train or identify, through the cache.
+"""The models of an experiment: collect the data, learn, through the cache.
 
-Every learned controller is made by its recipe (:mod:`rkmpc.learning.recipes`):
-recipes whose data are ``"track"`` learn from LMPC laps of the track
-(collected once for all of them), ``"excitation"`` recipes from random
-excitation of the car (which does not depend on the track). Trained models
-are cached by content hash (:mod:`rkmpc.experiments.cache`).
+Every learned controller is made by its recipe (:mod:`rkmpc.learning.recipes`) in one place,
+:func:`make_model` (which calls :func:`rkmpc.learning.learn.learn` for the scenario's car, through
+the model cache for the learners whose models are worth caching). Recipes whose data are
+``"track"`` learn from LMPC laps of the track (collected once for all of them, :func:`learn_models`),
+``"excitation"`` recipes from random excitation of the car, which does not depend on the track
+(:func:`excitation_model`).
 """
 
 from __future__ import annotations
@@ -23,18 +24,19 @@ from rkmpc.core.progress import EpochProgress
 from rkmpc.core.versions import RKMPC_VERSION
 from rkmpc.experiments.cache import ModelCache
 from rkmpc.experiments.results import DataRecord, ModelRecord, TrainingRecord
-from rkmpc.learning.contract import contract_of
 from rkmpc.learning.data.dataset import TransitionDataset
-from rkmpc.learning.identification import identify
 from rkmpc.learning.io import load_model
-from rkmpc.learning.koopman.lifting import MLPLifting
 from rkmpc.learning.koopman.model import KoopmanModel
-from rkmpc.learning.pipeline import TrainConfig, TrainReport, train_model
-from rkmpc.learning.recipes import RECIPES, Recipe, recipe_for
+from rkmpc.learning.learn import Learned, learn
+from rkmpc.learning.pipeline import TrainConfig
+from rkmpc.learning.recipes import RECIPES, DataSource, KoopmanLearner, Recipe, recipe_for
+from rkmpc.sim.build import check_model
 from rkmpc.sim.collect import collect, collect_excitation, excitation_lateral_accel
 from rkmpc.sim.scenario import Scenario
 
-__all__ = ["ModelPlan", "learn_models", "train_excitation_model", "train_track_model"]
+__all__ = ["ModelPlan", "excitation_model", "learn_models", "make_model"]
+
+Say = Callable[[str], None]
 
 
 @functools.cache
@@ -49,10 +51,14 @@ def _code_hash() -> str:
     return digest.hexdigest()[:16]
 
 
-def _record(report: TrainReport, kind: str, model: KoopmanModel, **extra: Any) -> ModelRecord:
+def _record(learned: Learned, **extra: Any) -> ModelRecord:
+    """The record of a model just learned."""
+    model, report = learned.model, learned.report
+    if not isinstance(model, KoopmanModel) or report is None:
+        return ModelRecord(kind=learned.recipe.kind, identified=model, **extra)  # type: ignore[arg-type]
     err = report.multi_step_error
     return ModelRecord(
-        kind=kind,
+        kind=learned.recipe.kind,
         raw_samples=report.raw_count,
         augmented_samples=report.augmented_count,
         train_windows=report.train_windows,
@@ -67,41 +73,76 @@ def _record(report: TrainReport, kind: str, model: KoopmanModel, **extra: Any) -
     )
 
 
-def _train(
-    data: TransitionDataset,
-    scenario: Scenario,
+def make_model(
     recipe: Recipe,
-    config: TrainConfig,
-    say: Callable[[str], None] | None,
-) -> tuple[KoopmanModel, TrainReport]:
-    """Train ``config``'s model for the scenario's car; ``say``, when given, hears its progress."""
+    scenario: Scenario,
+    data: Callable[[], TransitionDataset],
+    data_key: Mapping[str, Any],
+    *,
+    seed: int,
+    epochs: int | None = None,
+    cache: ModelCache | None = None,
+    say: Say | None = None,
+) -> tuple[object, ModelRecord]:
+    """The model of ``recipe`` learned from ``data()`` for the scenario's car, and its record.
+
+    A Koopman model comes from ``cache`` when it holds one for the same data (``data_key``: the data
+    set's content hash, or what makes the data when they are made on demand) and settings; the data
+    are asked for only when the model is learned. ``say``, when given, hears the training's progress
+    (:class:`rkmpc.core.progress.EpochProgress`).
+    """
+    learner = recipe.learner
     on_epoch = None
-    lifting = config.unfitted_model().lifting
-    if say is not None and isinstance(lifting, MLPLifting) and lifting.training is not None:
+    if say is not None and isinstance(learner, KoopmanLearner):
         what = f"training the {recipe.kind} model of {recipe.controller}"
-        on_epoch = EpochProgress(say, what, lifting.training.epochs)
-    return train_model(
-        data, scenario.vehicle.wheelbase, config, vehicle=scenario.vehicle_name, on_epoch=on_epoch
-    )
+        on_epoch = EpochProgress(say, what, 100 if epochs is None else epochs)
 
+    def build() -> tuple[object, ModelRecord]:
+        t0 = time.perf_counter()
+        made = data()
+        collected = time.perf_counter() - t0
+        learned = learn(
+            recipe,
+            made,
+            made_for=replace(scenario.provenance(), scale=None),
+            vehicle=scenario.vehicle,
+            seed=seed,
+            epochs=epochs,
+            on_epoch=on_epoch,
+        )
+        if isinstance(learned.model, KoopmanModel):
+            return learned.model, _record(learned, collect_time_s=collected if collected > 0.5 else None)
+        record = ModelRecord(
+            kind=recipe.kind,
+            raw_samples=len(made),
+            fit_time_s=time.perf_counter() - t0 - collected,
+            identified=learned.model,
+        )
+        return learned.model, record
 
-def _through_cache(
-    cache: ModelCache | None, spec: Mapping[str, Any], build: Callable[[], tuple[KoopmanModel, ModelRecord]]
-) -> tuple[KoopmanModel, ModelRecord]:
-    """``build()``, or the cached model of ``spec``; the record says which."""
-    if cache is None:
+    if cache is None or not isinstance(learner, KoopmanLearner):
         model, record = build()
-        return model, replace(record, cached=False, cache_key=None)
+        return model, replace(record, cached=False, cache_key=None) if cache is None else record
+    spec = {
+        "kind": recipe.kind,
+        **data_key,
+        "wheelbase": scenario.vehicle.wheelbase,
+        "augment": asdict(learner.augment(seed)),
+        "model": learner.default_model(seed, epochs).get_params(),
+        "holdout": TrainConfig().holdout,
+        "rkmpc_version": RKMPC_VERSION,
+        "code": _code_hash(),
+    }
 
     def build_json() -> tuple[KoopmanModel, dict[str, Any]]:
         model, record = build()
-        return model, record.to_json()
+        return model, record.to_json()  # type: ignore[return-value]
 
     model, hit = cache.get_or_build(spec, build_json)
     return model, replace(ModelRecord.from_json(hit.info), cached=hit.hit, cache_key=hit.key)
 
 
-def train_excitation_model(
+def excitation_model(
     scenario: Scenario,
     recipe: Recipe,
     *,
@@ -109,81 +150,34 @@ def train_excitation_model(
     seed: int,
     cache: ModelCache | None,
     epochs: int | None = None,
-    say: Callable[[str], None] | None = None,
-) -> tuple[KoopmanModel, ModelRecord]:
-    """The model of an ``"excitation"`` recipe (KMPC) of the scenario's car, from the cache or trained.
+    say: Say | None = None,
+) -> tuple[object, ModelRecord]:
+    """The model of an ``"excitation"`` recipe (KMPC) of the scenario's car, from the cache or learned.
 
-    ``say``, when given, hears the training's progress (:class:`rkmpc.core.progress.EpochProgress`).
+    Its data (random excitation of the car, which does not depend on the track) are collected only
+    when the cache does not hold the model.
     """
-    augment = recipe.augment(seed)
-    model = recipe.default_model(seed, epochs)
-    spec = {
-        "name": recipe.controller,
-        "kind": recipe.kind,
-        "vehicle": scenario.vehicle_name,
+    key: dict[str, Any] = {
+        "excitation_of": scenario.vehicle_name,
         "vehicle_params": asdict(scenario.vehicle),
-        "plant": scenario.vehicle_preset.plant,
+        "plant": scenario.car.plant.model,
         "speed_range": [scenario.limits.min_speed, scenario.limits.max_speed],
         "lateral_accel": excitation_lateral_accel(scenario),
         "dt": scenario.dt,
         "samples": samples,
         "seed": seed,
-        "augment": asdict(augment),
-        "model": model.get_params(),
-        "rkmpc_version": RKMPC_VERSION,
-        "code": _code_hash(),
     }
-    if scenario.car is not None:  # keys of the presets' own plants stay as they were
-        spec["car"] = scenario.car.describe()
+    zoo = scenario.zoo_car
+    if zoo is not None:
+        key["car"] = zoo.describe()
 
-    def build() -> tuple[KoopmanModel, ModelRecord]:
-        t0 = time.perf_counter()
-        data = collect_excitation(scenario, n_samples=samples, seed=seed)
-        collect_time = time.perf_counter() - t0
-        config = TrainConfig(kind=recipe.kind, augment=augment, model=model)
-        fitted, report = _train(data, scenario, recipe, config, say)
-        return fitted, _record(report, recipe.kind, fitted, collect_time_s=collect_time)
+    def data() -> TransitionDataset:
+        return collect_excitation(scenario, n_samples=samples, seed=seed)
 
-    return _through_cache(cache, spec, build)
+    return make_model(recipe, scenario, data, key, seed=seed, epochs=epochs, cache=cache, say=say)
 
 
-def train_track_model(
-    data: TransitionDataset,
-    scenario: Scenario,
-    recipe: Recipe,
-    *,
-    seed: int,
-    cache: ModelCache | None,
-    epochs: int | None = None,
-    say: Callable[[str], None] | None = None,
-) -> tuple[KoopmanModel, ModelRecord]:
-    """The model of a ``"track"`` recipe (``residual``, ``paper``) of on-track data, cached or trained.
-
-    ``say``, when given, hears the training's progress (:class:`rkmpc.core.progress.EpochProgress`).
-    """
-    config = TrainConfig(
-        kind=recipe.kind, augment=recipe.augment(seed), model=recipe.default_model(seed, epochs)
-    )
-    spec = {
-        "name": recipe.kind,
-        "kind": recipe.kind,
-        "data_hash": data.content_hash(),
-        "wheelbase": scenario.vehicle.wheelbase,
-        "augment": asdict(config.augment),
-        "model": config.unfitted_model().get_params(),
-        "holdout": config.holdout,
-        "rkmpc_version": RKMPC_VERSION,
-        "code": _code_hash(),
-    }
-
-    def build() -> tuple[KoopmanModel, ModelRecord]:
-        model, report = _train(data, scenario, recipe, config, say)
-        return model, _record(report, recipe.kind, model)
-
-    return _through_cache(cache, spec, build)
-
-
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class ModelPlan:
     """What to learn for a comparison, and how.
 
@@ -228,25 +222,27 @@ class ModelPlan:
             raise ParameterError(f"model files given for {unknown}, which take no model; learned: {learned}")
         object.__setattr__(self, "model_files", files)
 
+    def cache(self) -> ModelCache | None:
+        """The model cache to read and write, or None."""
+        return ModelCache(self.cache_dir) if self.use_cache else None
+
 
 def learn_models(
-    scenario: Scenario, plan: ModelPlan, *, say: Callable[[str], None] | None = None
-) -> tuple[dict[str, dict[str, Any]], TrainingRecord]:
-    """Collect data and train (or load) the model of every learned controller of the plan.
+    scenario: Scenario, plan: ModelPlan, *, say: Say | None = None
+) -> tuple[dict[str, object], TrainingRecord]:
+    """Collect data and learn (or load) the model of every learned controller of the plan.
 
-    ``say``, when given, is called with a short message before each slow stage.
-
-    Every model file is checked against the scenario (car, wheelbase, period, track scale:
-    :meth:`rkmpc.learning.contract.Provenance.check`) as it is read, before anything is collected,
-    trained or driven; the models trained here are made for the scenario.
+    ``say``, when given, is called with a short message before each slow stage. Every model file
+    is checked against the scenario (:func:`rkmpc.sim.build.check_model`) as it is read, before
+    anything is collected, trained or driven; the models learned here are made for the scenario.
 
     Returns
     -------
-    options : dict
-        Controller options (``model``, ``allow_mismatch``) by controller name.
+    models : dict
+        The model of each learned controller, by controller name.
     training : TrainingRecord
-        The data and a record per model (with the contract warnings of a model used on request
-        with another car or period).
+        The data and a record per model (with the contract warnings of a model file used on
+        request with another car or period).
 
     Raises
     ------
@@ -254,22 +250,18 @@ def learn_models(
         When a model file was made with another car, period or scale, unless ``plan.allow_mismatch``.
     """
     tell = say if say is not None else (lambda _msg: None)
-    cache = ModelCache(plan.cache_dir) if plan.use_cache else None
-    options: dict[str, dict[str, Any]] = {}
+    cache = plan.cache()
+    models: dict[str, object] = {}
     records: dict[str, ModelRecord] = {}
     wanted = [(name, r) for name in plan.controllers if (r := recipe_for(name)) is not None]
     for name, recipe in wanted:
         if name in plan.model_files:
             path = str(plan.model_files[name])
-            model = load_model(path, recipe.kind)
-            warned: tuple[str, ...] = ()
-            if isinstance(model, KoopmanModel):  # identified models are not checked when read
-                warned = contract_of(model.metadata_).check(
-                    scenario.provenance(), source=path, made="trained", allow_mismatch=plan.allow_mismatch
-                )
-            options[name] = {"model": model}
+            models[name] = model = load_model(path, recipe.kind)
+            warned = check_model(model, scenario, source=path, allow_mismatch=plan.allow_mismatch)
             records[name] = ModelRecord(model_file=path, contract_warnings=list(warned) or None)
-    on_track = [(n, r) for n, r in wanted if r.data == "track" and n not in plan.model_files]
+    to_learn = [(n, r) for n, r in wanted if n not in plan.model_files]
+    on_track = [(n, r) for n, r in to_learn if r.data is DataSource.TRACK]
     data_record = None
     if on_track:
         tell(f"collecting {plan.laps} LMPC laps of data")
@@ -283,30 +275,16 @@ def learn_models(
             collect_time_s=time.perf_counter() - t0,
             data_hash=data.content_hash(),
         )
+        key = {"data_hash": data_record.data_hash}
         for name, recipe in on_track:
-            if recipe.learner == "identification":
-                t0 = time.perf_counter()
-                ident = identify(data, scenario.vehicle)
-                for warning in ident.warnings:
-                    tell(f"{name}: identification warning: {warning}")
-                records[name] = ModelRecord(
-                    kind=recipe.kind,
-                    raw_samples=len(data),
-                    fit_time_s=time.perf_counter() - t0,
-                    identified=ident,
-                )
-                options[name] = {"model": ident}
-                continue
-            tell(f"training the {recipe.kind} model of {name}")
-            model, record = train_track_model(
-                data, scenario, recipe, seed=plan.seed, cache=cache, epochs=plan.epochs, say=say
+            tell(f"learning the {recipe.kind} model of {name}")
+            models[name], records[name] = make_model(
+                recipe, scenario, lambda: data, key, seed=plan.seed, epochs=plan.epochs, cache=cache, say=say
             )
-            records[name] = record
-            options[name] = {"model": model}
-    for name, recipe in wanted:
-        if recipe.data == "excitation" and name not in plan.model_files:
-            tell(f"{name} model: {plan.excitation_samples} random-excitation samples (trained once, cached)")
-            model, record = train_excitation_model(
+    for name, recipe in to_learn:
+        if recipe.data is DataSource.EXCITATION:
+            tell(f"{name} model: {plan.excitation_samples} random-excitation samples (learned once, cached)")
+            models[name], records[name] = excitation_model(
                 scenario,
                 recipe,
                 samples=plan.excitation_samples,
@@ -315,9 +293,5 @@ def learn_models(
                 epochs=plan.epochs,
                 say=say,
             )
-            records[name] = record
-            options[name] = {"model": model}
-    for option in options.values():
-        option["allow_mismatch"] = plan.allow_mismatch
     ordered = {name: records[name] for name in plan.controllers if name in records}
-    return options, TrainingRecord(data=data_record, models=ordered)
+    return models, TrainingRecord(data=data_record, models=ordered)

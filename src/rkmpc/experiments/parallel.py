@@ -47,14 +47,11 @@ import traceback
 from collections import Counter
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import joblib
 
 from rkmpc.core.errors import ParameterError, RkmpcError
-
-if TYPE_CHECKING:
-    from rkmpc.experiments.journal import JobJournal
 
 #: Backends :func:`run_jobs` accepts.
 BACKENDS = ("loky", "dask", "ray")
@@ -154,6 +151,16 @@ class JobOutcome:
 ProgressCallback = Callable[[JobOutcome, int, int], None]
 
 
+class Journal(Protocol):
+    """Where finished jobs are kept (:class:`rkmpc.experiments.journal.JobJournal`)."""
+
+    def load(self, key: str) -> JobOutcome | None:
+        """The outcome kept under ``key``, or None."""
+
+    def save(self, key: str, outcome: JobOutcome) -> None:
+        """Keep a finished job's outcome under ``key``."""
+
+
 def limit_threads() -> None:
     """Use one thread in numeric libraries from now on, in this process.
 
@@ -210,7 +217,7 @@ def run_jobs(
     address: str | None = None,
     on_error: str = "raise",
     progress: ProgressCallback | None = None,
-    journal: JobJournal | None = None,
+    journal: Journal | None = None,
 ) -> list[JobOutcome]:
     """Run independent jobs and return their outcomes in job order.
 
@@ -297,7 +304,7 @@ def _run(
     address: str | None,
     on_error: str,
     progress: ProgressCallback | None,
-    journal: JobJournal | None,
+    journal: Journal | None,
 ) -> None:
     """Run the jobs of ``todo`` (index, job), filling ``outcomes`` and the journal as they finish."""
     total = len(outcomes)

@@ -41,6 +41,11 @@ class ControllerRun:
     def to_json(self) -> dict[str, Any]:
         return {**self.metrics.to_json(), "outcome": self.outcome, "failure": self.failure}
 
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> ControllerRun:
+        """A run read back from :meth:`to_json` output."""
+        return cls(metrics=LapMetrics.from_json(data), outcome=str(data["outcome"]), failure=data["failure"])
+
 
 @dataclass(frozen=True)
 class DataRecord:
@@ -71,6 +76,11 @@ class DataRecord:
 
     def to_json(self) -> dict[str, Any]:
         return asdict(self)
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> DataRecord:
+        """A record read back from :meth:`to_json` output."""
+        return cls(**{name: data[name] for name in cls.__dataclass_fields__})
 
 
 @dataclass(frozen=True)
@@ -136,6 +146,12 @@ class TrainingRecord:
             out = {"data": self.data.to_json(), **out}
         return out
 
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> TrainingRecord:
+        """A record read back from :meth:`to_json` output."""
+        models = {name: ModelRecord.from_json(value) for name, value in data.items() if name != "data"}
+        return cls(data=DataRecord.from_json(data["data"]) if "data" in data else None, models=models)
+
 
 @dataclass(frozen=True)
 class FaultOutcome:
@@ -186,3 +202,18 @@ class TrackResult:
             out["faulted"] = {name: run.to_json() for name, run in self.fault.runs.items()}
             out["fault_effect"] = dict(self.fault.effects)
         return out
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> TrackResult:
+        """A result read back from :meth:`to_json` output (a study's journal keeps them)."""
+        fault = None
+        if "fault" in data:
+            runs = {name: ControllerRun.from_json(run) for name, run in data["faulted"].items()}
+            fault = FaultOutcome(str(data["fault"]), runs, dict(data["fault_effect"]))
+        return cls(
+            track=str(data["track"]),
+            controllers={name: ControllerRun.from_json(run) for name, run in data["controllers"].items()},
+            training=TrainingRecord.from_json(data["training"]),
+            config=dict(data["config"]),
+            fault=fault,
+        )

@@ -2,8 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
-from typing import Any
+from collections.abc import Callable
 
 from rkmpc.analysis.metrics import LapMetrics, lap_metrics
 from rkmpc.sim.closed_loop import SimResult
@@ -17,7 +16,8 @@ def run_controller(
     scenario: Scenario,
     spec: RunSpec,
     *,
-    controller_options: Mapping[str, Any] | None = None,
+    model: object = None,
+    allow_mismatch: bool = False,
     on_step: Callable[[float, float], None] | None = None,
 ) -> tuple[SimResult, LapMetrics]:
     """Drive one controller in the scenario and measure it.
@@ -29,5 +29,5 @@ def run_controller(
     metrics : LapMetrics
         :func:`rkmpc.analysis.metrics.lap_metrics` of the run over the spec's laps.
     """
-    result = drive(scenario, spec, controller_options=controller_options, on_step=on_step)
+    result = drive(scenario, spec, model=model, allow_mismatch=allow_mismatch, on_step=on_step)
     return result, lap_metrics(result, laps=spec.laps)

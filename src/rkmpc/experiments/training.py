@@ -3,20 +3,17 @@
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import replace
 from pathlib import Path
 
 from rkmpc.core.errors import ParameterError
-from rkmpc.learning.contract import CONTRACT_KEY, Provenance
+from rkmpc.learning.contract import Provenance
 from rkmpc.learning.data.dataset import TransitionDataset
-from rkmpc.learning.data.plausibility import check_learnable
-from rkmpc.learning.identification import IdentifiedModel, identify
-from rkmpc.learning.io import save_identified
-from rkmpc.learning.pipeline import TrainConfig, train_model
+from rkmpc.learning.identification import IdentifiedModel
+from rkmpc.learning.learn import Learned, learn, save_learned
 from rkmpc.learning.recipes import recipe_of_kind
 from rkmpc.vehicle.params import VehicleParams
 
-__all__ = ["describe_identified", "train_to_file"]
+__all__ = ["describe_identified", "describe_learned", "train_to_file"]
 
 
 def describe_identified(model: IdentifiedModel) -> str:
@@ -88,45 +85,38 @@ def train_to_file(
     InputFileError
         For data no model should be learned from (:func:`rkmpc.learning.data.plausibility.check_learnable`).
     """
-    recipe = recipe_of_kind(kind)
-    if made_for.wheelbase is None:
-        raise ParameterError("train_to_file: made_for must give the wheelbase of the car")
-    wheelbase = made_for.wheelbase
-    if recipe.learner == "identification":
-        warned = data.contract.check(made_for, source=source, made="recorded", allow_mismatch=allow_mismatch)
-        check_learnable(data, wheelbase, source)
-        ident = identify(data, vehicle)
-        contract = replace(data.contract, dt=data.dt, wheelbase=wheelbase, recorded=True)
-        metadata = {
-            "data_hash": data.content_hash(),
-            "data_metadata": data.metadata,
-            CONTRACT_KEY: contract.to_json(),
-            "contract_warnings": list(warned),
-        }
-        save_identified(ident, out, metadata)
-        return [f"{describe_identified(ident)} -> {out}", *warned, *(f"warning: {w}" for w in ident.warnings)]
-    config = TrainConfig(
-        kind=kind, augment=recipe.augment(seed), model=recipe.default_model(seed, epochs), dt=made_for.dt
-    )
-    model, report = train_model(
+    if made_for.wheelbase != vehicle.wheelbase:
+        raise ParameterError("train_to_file: made_for must give the wheelbase of the car's vehicle")
+    learned = learn(
+        recipe_of_kind(kind),
         data,
-        wheelbase,
-        config,
+        made_for=made_for,
+        vehicle=vehicle,
+        seed=seed,
+        epochs=epochs,
         on_epoch=on_epoch,
-        vehicle=made_for.vehicle,
         allow_mismatch=allow_mismatch,
         source=source,
     )
-    model.save(out, metadata=model.metadata_)
-    lines = [
-        *model.metadata_["contract_warnings"],
-        f"{kind} model: {report.raw_count} raw -> {report.augmented_count} augmented samples, "
-        f"{report.fit_time_s:.1f} s -> {out}",
-    ]
-    err = report.multi_step_error
-    if err:
-        steps = [k for k in (1, 10, len(err)) if k <= len(err)]
+    save_learned(learned, out)
+    return describe_learned(learned, out)
+
+
+def describe_learned(learned: Learned, out: str | Path) -> list[str]:
+    """What ``rkmpc train`` prints of a model it wrote: a summary line, then its warnings."""
+    model, report = learned.model, learned.report
+    if isinstance(model, IdentifiedModel):
+        return [f"{describe_identified(model)} -> {out}", *(f"warning: {w}" for w in learned.warnings)]
+    lines = [*learned.warnings]
+    if report is not None:
         lines.append(
-            "held-out prediction error: " + ", ".join(f"{err[k - 1]:.4f} at step {k}" for k in steps)
+            f"{learned.recipe.kind} model: {report.raw_count} raw -> {report.augmented_count} augmented "
+            f"samples, {report.fit_time_s:.1f} s -> {out}"
         )
+        err = report.multi_step_error
+        if err:
+            steps = [k for k in (1, 10, len(err)) if k <= len(err)]
+            lines.append(
+                "held-out prediction error: " + ", ".join(f"{err[k - 1]:.4f} at step {k}" for k in steps)
+            )
     return lines

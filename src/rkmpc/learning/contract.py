@@ -35,7 +35,7 @@ __all__ = ["CHECKED_FIELDS", "CONTRACT_KEY", "Provenance", "contract_of"]
 #: Metadata key under which data sets and models store their :class:`Provenance`.
 CONTRACT_KEY = "contract"
 #: The fields :meth:`Provenance.check` compares, with their units for messages.
-CHECKED_FIELDS = {"vehicle": "", "dt": " s", "wheelbase": " m", "scale": ""}
+CHECKED_FIELDS = {"vehicle": "", "plant": "", "dt": " s", "wheelbase": " m", "scale": ""}
 #: Relative tolerance of the numeric comparisons (a period read back from JSON is the same period).
 _RTOL = 1e-6
 
@@ -75,6 +75,9 @@ class Provenance:
     ----------
     vehicle : str or None
         Vehicle preset name (``"f1tenth"``, ``"fullsize"``).
+    plant : str or None
+        The car that was driven: the preset's own plant (``"f1tenth"``) or a zoo car
+        (``"gym"``, ``"random-3"``); None when not known (a real car's log).
     dt : float or None
         Control period (s), > 0.
     wheelbase : float or None
@@ -98,6 +101,7 @@ class Provenance:
     """
 
     vehicle: str | None = None
+    plant: str | None = None
     dt: float | None = None
     wheelbase: float | None = None
     scale: float | None = None
@@ -109,10 +113,10 @@ class Provenance:
     def __post_init__(self) -> None:
         if not isinstance(self.recorded, bool):
             raise ParameterError(f"Provenance.recorded must be a bool, got {self.recorded!r}")
-        if self.vehicle is not None and not (isinstance(self.vehicle, str) and self.vehicle):
-            raise ParameterError(
-                f"Provenance.vehicle must be None or a non-empty string, got {self.vehicle!r}"
-            )
+        for name in ("vehicle", "plant"):
+            value = getattr(self, name)
+            if value is not None and not (isinstance(value, str) and value):
+                raise ParameterError(f"Provenance.{name} must be None or a non-empty string, got {value!r}")
         for name in ("dt", "wheelbase", "scale"):
             _optional_positive(self, name)
         if isinstance(self.features, str) or not all(isinstance(n, str) for n in self.features):
@@ -168,6 +172,7 @@ class Provenance:
         """Plain JSON types (tuples as lists)."""
         return {
             "vehicle": self.vehicle,
+            "plant": self.plant,
             "dt": self.dt,
             "wheelbase": self.wheelbase,
             "scale": self.scale,

@@ -29,7 +29,7 @@ from rkmpc.learning.data.plausibility import check_learnable
 from rkmpc.learning.data.residuals import control_residuals
 from rkmpc.learning.features import FeatureMap, previous_commands
 from rkmpc.learning.koopman.model import KoopmanModel
-from rkmpc.learning.recipes import model_kinds, recipe_of_kind
+from rkmpc.learning.recipes import KoopmanLearner, ModelInput, ModelOutput, model_kinds, recipe_of_kind
 
 __all__ = ["TrainConfig", "TrainReport", "train_model", "training_arrays"]
 
@@ -62,8 +62,8 @@ class TrainConfig:
 
     def __post_init__(self) -> None:
         recipe = recipe_of_kind(self.kind)
-        if recipe.learner != "koopman":
-            koopman = [k for k in model_kinds() if recipe_of_kind(k).learner == "koopman"]
+        if not isinstance(recipe.learner, KoopmanLearner):
+            koopman = [k for k in model_kinds() if isinstance(recipe_of_kind(k).learner, KoopmanLearner)]
             raise ParameterError(f"TrainConfig.kind must be one of {koopman}, got {self.kind!r}")
         if not 0.0 <= self.holdout < 1.0:
             raise ParameterError(f"TrainConfig.holdout must be in [0, 1), got {self.holdout}")
@@ -76,7 +76,7 @@ class TrainConfig:
         """The model to fit: :attr:`model`, or the recipe's default."""
         if self.model is not None:
             return self.model
-        return recipe_of_kind(self.kind).default_model(seed=self.augment.seed)
+        return recipe_of_kind(self.kind).koopman().default_model(seed=self.augment.seed)
 
 
 @dataclass(frozen=True)
@@ -125,17 +125,16 @@ def training_arrays(
     The states are the recipe's :class:`~rkmpc.learning.features.FeatureMap` of the window
     observations: the same map feeds the controller on the car.
     """
-    recipe = recipe_of_kind(kind)
-    if recipe.state is None:
-        raise ParameterError(f"the {kind!r} model has no state features: it is identified, not trained")
+    learner = recipe_of_kind(kind).koopman()
     idx = windows.indices
-    needs_labels = recipe.model_input == "control_residual" or recipe.output == "nominal_input"
-    labels = control_residuals(data, wheelbase) if needs_labels else None
-    Xw = _window_states(windows, recipe.state, previous_commands(data.command, data.episode))
+    residual_input = learner.model_input is ModelInput.CONTROL_RESIDUAL
+    nominal_output = learner.output is ModelOutput.NOMINAL_INPUT
+    labels = control_residuals(data, wheelbase) if residual_input or nominal_output else None
+    Xw = _window_states(windows, learner.state, previous_commands(data.command, data.episode))
     Uw = windows.command
-    if recipe.model_input == "control_residual" and labels is not None:
+    if residual_input and labels is not None:
         Uw = labels.delta[idx]
-    Yw = labels.nominal[idx] if recipe.output == "nominal_input" and labels is not None else None
+    Yw = labels.nominal[idx] if nominal_output and labels is not None else None
     return Xw, Uw, Yw
 
 
@@ -227,6 +226,7 @@ def train_model(
     )
     contract = Provenance(
         vehicle=made_with.vehicle if made_with.vehicle is not None else vehicle,
+        plant=made_with.plant,
         dt=data.dt,
         wheelbase=wheelbase,
         scale=made_with.scale,
@@ -239,8 +239,8 @@ def train_model(
         "contract_warnings": list(warned),
         "kind": cfg.kind,
         "features": [] if recipe.state is None else list(recipe.state.names),
-        "model_input": recipe.model_input,
-        "output": recipe.output,
+        "model_input": str(recipe.koopman().model_input),
+        "output": str(recipe.koopman().output),
         "data_hash": data.content_hash(),
         "data_metadata": data.metadata,
         "augment": asdict(cfg.augment),

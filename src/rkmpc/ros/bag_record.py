@@ -27,9 +27,9 @@ from typing import Any
 
 from rclpy.serialization import serialize_message
 
+from rkmpc.config.ros import RosSettings
 from rkmpc.learning.data.bags.stream import BagStreamWriter
 from rkmpc.learning.data.bags.types import ACKERMANN_DRIVE_STAMPED, FLOAT64, ODOMETRY
-from rkmpc.ros.config import NodeConfig
 
 __all__ = ["BagRecorder", "bag_path"]
 
@@ -49,7 +49,7 @@ class BagRecorder:
     ----------
     path : str or Path
         The bag folder; it must not exist.
-    config : NodeConfig
+    config : RosSettings
         The node's topics (the steering topic is recorded when set), trigger (the clock of the
         bag, see the module) and the bag's storage (``record.storage``).
 
@@ -59,7 +59,7 @@ class BagRecorder:
         When ``path`` exists.
     """
 
-    def __init__(self, path: str | Path, config: NodeConfig) -> None:
+    def __init__(self, path: str | Path, config: RosSettings) -> None:
         topics = config.topics
         kinds = {topics.odometry: ODOMETRY, topics.drive: ACKERMANN_DRIVE_STAMPED}
         if topics.steering is not None:

@@ -21,11 +21,11 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from rkmpc.config.ros import RosSettings
 from rkmpc.control.base import Controller
 from rkmpc.control.guard import WheelAngleEstimate
 from rkmpc.core.angles import wrap_scalar
 from rkmpc.core.observation import Command, Observation
-from rkmpc.ros.config import NodeConfig
 from rkmpc.ros.latency import CommandHistory, propagate
 from rkmpc.ros.safety import SafetyMonitor, stop_command
 from rkmpc.track.reference import Reference
@@ -96,7 +96,7 @@ class CarDriver:
         The path and speed profile the controller tracks (for the errors the safety checks).
     vehicle : VehicleParams
         The controllers' car (wheelbase, ``lr``, servo).
-    config : NodeConfig
+    config : RosSettings
         Safety limits, latency, the odometry's pose reference, the steering source.
     records : int
         How many decisions :attr:`records` keeps.
@@ -107,7 +107,7 @@ class CarDriver:
         controller: Controller,
         reference: Reference,
         vehicle: VehicleParams,
-        config: NodeConfig,
+        config: RosSettings,
         *,
         records: int = 200_000,
     ) -> None:

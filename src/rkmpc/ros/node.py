@@ -4,8 +4,10 @@ In: ``nav_msgs/msg/Odometry`` (``/ego_racecar/odom``) and, where the car measure
 wheel angle (``std_msgs/msg/Float64``). Out: ``ackermann_msgs/msg/AckermannDriveStamped``
 (``/drive``) at a fixed rate (20 Hz by default) and ``diagnostic_msgs/msg/DiagnosticArray``
 (``/diagnostics``: the safety state, the controller's step time, fall-backs, errors, lateral and
-heading error, the odometry's age). Settings: a YAML file per car (:mod:`rkmpc.ros.config`)
-whose keys ROS parameters override. What happens each period, and when the car is stopped, is
+heading error, the odometry's age). Settings: the car file every command reads, its ``[ros]``
+section overridden by ROS parameters (:mod:`rkmpc.ros.config`); the track, controller and model
+from the command line (:class:`rkmpc.ros.config.NodeTask`). What happens each period, and when the car
+is stopped, is
 :class:`rkmpc.ros.driver.CarDriver`'s; this module only moves messages.
 
 Ctrl-C (or SIGTERM) ends the node with a final stop command. :meth:`ControllerNode.add_recorder`
@@ -24,7 +26,6 @@ import math
 import signal
 import time
 from collections.abc import Callable, Mapping
-from dataclasses import fields, is_dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -41,18 +42,17 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 from std_msgs.msg import Float64
 
-from rkmpc.control.registry import make_controller
+from rkmpc.config.car import CarConfig
 from rkmpc.core.errors import ParameterError
-from rkmpc.learning.contract import contract_of
 from rkmpc.learning.io import load_model
-from rkmpc.learning.koopman.model import KoopmanModel
 from rkmpc.learning.recipes import recipe_for
 from rkmpc.ros.bag_record import BagRecorder, bag_path
-from rkmpc.ros.config import NodeConfig, flatten, load_node_config
+from rkmpc.ros.config import NodeTask, flatten, load_node_car
 from rkmpc.ros.conversions import fill_drive, observation_from_odometry, seconds_of, set_stamp
 from rkmpc.ros.driver import CarDriver, Decision
 from rkmpc.ros.record import write_record
-from rkmpc.sim.scenario import load_scenario, vehicle_preset
+from rkmpc.sim.build import build_controller
+from rkmpc.sim.scenario import Scenario
 
 __all__ = ["ControllerNode", "make_driver", "run_node"]
 
@@ -62,62 +62,33 @@ Recorder = Callable[[str, Any, int], None]
 _ROS_OWN_PARAMETERS = ("use_sim_time", "start_type_description_service")
 
 
-def make_driver(config: NodeConfig) -> CarDriver:
-    """The controller of the config on its track and car, loaded model included, in a :class:`CarDriver`.
+def make_driver(car: CarConfig, task: NodeTask) -> CarDriver:
+    """The task's controller on its track and car, model loaded and checked, in a :class:`CarDriver`.
+
+    The controller is built as every command builds it (:func:`rkmpc.sim.build.build_controller`),
+    planning with the node's period (``[ros] rate_hz``).
 
     Raises
     ------
     ParameterError
-        For a learned controller without a model file, a model given to one that takes none, or a
-        controller that cannot run at ``rate_hz``.
+        For a learned controller without a model file, or a model given to one that takes none.
     ContractError
         For a model made with another car, period or track scale (unless ``allow_mismatch``).
     """
-    preset = vehicle_preset(config.vehicle)
-    scenario = load_scenario(
-        config.track,
-        raceline=config.raceline,
-        scale=config.scale,
-        vehicle=config.vehicle,
-        limits=config.speed_limits.applied_to(preset.limits),
-        dt=config.period,
-    )
-    # The preset's tuned settings, planning with the node's period.
-    options = {
-        key: _with_period(value, config.period)
-        for key, value in preset.options_for(config.controller).items()
-    }
-    recipe = recipe_for(config.controller)
+    ros = car.ros
+    scenario = Scenario.from_car(car, task.track, scale=task.scale, raceline=task.raceline, dt=ros.period)
+    recipe = recipe_for(task.controller)
+    model = None
     if recipe is not None:
-        if config.model is None:
+        if task.model is None:
             raise ParameterError(
-                f"controller {config.controller!r} needs `model:` (a {recipe.kind!r} model file)"
+                f"controller {task.controller!r} needs --model (a {recipe.kind!r} model file)"
             )
-        model = load_model(config.model, recipe.kind)
-        if isinstance(model, KoopmanModel):
-            contract_of(model.metadata_).check(
-                scenario.provenance(),
-                source=config.model,
-                made="trained",
-                allow_mismatch=config.allow_mismatch,
-            )
-        options.update(model=model, allow_mismatch=config.allow_mismatch)
-    elif config.model is not None:
-        raise ParameterError(f"controller {config.controller!r} takes no model, but `model:` is given")
-    controller = make_controller(config.controller, scenario.reference, scenario.vehicle, **options)
-    if controller.dt is not None and abs(controller.dt - config.period) > 1e-9:
-        raise ParameterError(
-            f"controller {config.controller!r} plans with a period of {controller.dt} s; set rate_hz to "
-            f"{1.0 / controller.dt:g}"
-        )
-    return CarDriver(controller, scenario.reference, scenario.vehicle, config)
-
-
-def _with_period(value: Any, period: float) -> Any:
-    """A controller setting planning with ``period`` (s) when it has a ``dt``; anything else as it is."""
-    if is_dataclass(value) and not isinstance(value, type) and any(f.name == "dt" for f in fields(value)):
-        return replace(value, dt=period)
-    return value
+        model = load_model(task.model, recipe.kind)
+    elif task.model is not None:
+        raise ParameterError(f"controller {task.controller!r} takes no model, but --model is given")
+    controller = build_controller(task.controller, scenario, model, allow_mismatch=task.allow_mismatch)
+    return CarDriver(controller, scenario.reference, scenario.vehicle, ros)
 
 
 class ControllerNode(Node):
@@ -125,16 +96,23 @@ class ControllerNode(Node):
 
     Parameters
     ----------
-    config_path : Path
-        The car's YAML file; ROS parameter overrides of its keys are applied.
+    car : CarConfig or Path
+        The car, or its file (TOML, or YAML); ROS parameter overrides of its ``[ros]`` keys are applied.
+    task : NodeTask
+        What it drives (track, controller, model).
     context : rclpy.context.Context, optional
         The ROS context (the default one when None).
     overrides : mapping of str to object, optional
-        Keys (dotted names) set after the ROS parameters (the command line's ``--record``).
+        ``[ros]`` keys (dotted names) set after the ROS parameters (the command line's ``--record``).
     """
 
     def __init__(
-        self, config_path: Path, *, context: Any = None, overrides: Mapping[str, Any] | None = None
+        self,
+        car: CarConfig | Path,
+        task: NodeTask,
+        *,
+        context: Any = None,
+        overrides: Mapping[str, Any] | None = None,
     ) -> None:
         super().__init__("rkmpc_node", context=context, automatically_declare_parameters_from_overrides=True)
         settings = {
@@ -143,11 +121,13 @@ class ControllerNode(Node):
             if name not in _ROS_OWN_PARAMETERS and not name.startswith("qos_overrides.")
         }
         settings.update(overrides or {})
-        self.config = config = load_node_config(config_path, settings)
+        self.car = load_node_car(car, settings)
+        self.task = task
+        self.config = config = self.car.ros
         for name, value in flatten(config).items():
             if value is not None and not self.has_parameter(name):
                 self.declare_parameter(name, value)
-        self.driver = make_driver(config)
+        self.driver = make_driver(self.car, task)
         self.recorders: list[Recorder] = []
         self._lr = self.driver.vehicle.lr if config.odometry.pose == "rear_axle" else 0.0
         self._lockstep = config.trigger == "odometry"
@@ -174,7 +154,7 @@ class ControllerNode(Node):
         )
         self.create_timer(config.period, self._on_timer, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.get_logger().info(
-            f"{config.controller} on {config.track} at {config.rate_hz:g} Hz ({config.trigger}); "
+            f"{task.controller} on {task.track} at {config.rate_hz:g} Hz ({config.trigger}); "
             f"odometry {topics.odometry} -> commands {topics.drive}"
         )
 
@@ -299,7 +279,7 @@ class ControllerNode(Node):
             level=level,
             name="rkmpc node",
             message=d.state + (f": {d.message}" if d.stop and d.message else ""),
-            hardware_id=self.config.vehicle,
+            hardware_id=self.car.preset,
             values=[KeyValue(key=k, value=_text(v)) for k, v in values.items()],
         )
         array = DiagnosticArray(status=[status])
@@ -320,7 +300,8 @@ def _text(value: Any) -> str:
 
 
 def run_node(
-    config_path: Path,
+    car: CarConfig | Path,
+    task: NodeTask,
     *,
     out: Path | None = None,
     record: Path | None = None,
@@ -329,7 +310,7 @@ def run_node(
 ) -> int:
     """Run the node until Ctrl-C or SIGTERM; then a final stop command, the bag and ``--out`` files.
 
-    ``record`` and ``record_storage`` set ``record.bag`` and ``record.storage`` of the car's file.
+    ``record`` and ``record_storage`` set ``[ros] record.bag`` and ``record.storage`` of the car's file.
     The bag is created before the node drives (an existing one is an error) and closed after the
     final stop, on Ctrl-C and SIGTERM alike. Returns 0.
     """
@@ -348,7 +329,7 @@ def run_node(
     node: ControllerNode | None = None
     recorder: BagRecorder | None = None
     try:
-        node = ControllerNode(config_path, overrides=overrides)
+        node = ControllerNode(car, task, overrides=overrides)
         if node.config.record.bag is not None:
             recorder = BagRecorder(bag_path(node.config.record.bag), node.config)
             node.add_recorder(recorder)
@@ -368,6 +349,8 @@ def run_node(
                 driver.records,
                 {
                     "config": flatten(node.config),
+                    "task": flatten(node.task),
+                    "car": node.car.to_json(),
                     "controller_errors": driver.controller_errors,
                     "nonfinite_commands": driver.nonfinite_commands,
                     "fallbacks": driver.controller.fallback_count,

@@ -29,9 +29,9 @@ from __future__ import annotations
 import math
 from collections import Counter
 
+from rkmpc.config.ros import SafetySettings
 from rkmpc.control.base import stop_command
 from rkmpc.core.observation import Command
-from rkmpc.ros.config import SafetySettings
 
 __all__ = ["STATES", "SafetyMonitor", "stop_command"]
 

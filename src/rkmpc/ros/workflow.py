@@ -1,15 +1,18 @@
 """``rkmpc car-loop``: the paper's on-car workflow end to end, on one machine over ROS 2.
 
-Every stage is a command a team runs with its car, started here as processes that talk over
-ROS 2 on this machine only (``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``, a domain id of the
-run's own), with ``rkmpc sim-node`` in the car's place:
+Every stage is what a command a team runs with its car does, called here as a function: the ROS
+nodes in processes of their own (:func:`rkmpc.ros.node.run_node`, :func:`rkmpc.ros.sim_node.run_sim_node`)
+that talk over ROS 2 on this machine only (``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``, a domain id
+of the run's own), with the simulated car in the car's place; the import and the learning in this
+process. The car is one :class:`~rkmpc.config.car.CarConfig` (the f1tenth preset, its ``[ros]``
+section set for each run), written to ``cars/<run>.json``:
 
-1. **record**: ``rkmpc sim-node`` drives two laps while ``rkmpc node`` runs the LMPC and records
-   what it saw and sent (``--record``) to ``record/bag`` (MCAP);
-2. **import**: ``rkmpc collect --from-bag record/bag --steer-topic /rkmpc/steering`` gives
-   ``data/laps.npz``;
-3. **train**: ``rkmpc train --kind residual`` and ``--kind identified`` (the recipes' settings
-   and seed 0, as ``rkmpc compare`` learns them) give ``models/``;
+1. **record**: the simulated car drives two laps while the node runs the LMPC and records
+   what it saw and sent to ``record/bag`` (MCAP);
+2. **import**: the bag (:func:`rkmpc.learning.data.bags.import_bag`, the measured wheel angle of
+   ``/rkmpc/steering``) gives ``data/laps.npz``;
+3. **learn**: the residual and the identified models (the recipes' settings and the seed, as
+   ``rkmpc compare`` learns them: :func:`rkmpc.experiments.training.train_to_file`) give ``models/``;
 4. **drive**: the LMPC, ``lmpc-id`` and RKMPC drive a lap each (``runs/<controller>``);
 5. **latency**: with an added actuation delay (``sim-node --actuation-delay``), the LMPC and
    RKMPC drive a lap with and without the node's latency compensation (``delay/<run>``);
@@ -26,20 +29,24 @@ the workflow ends, fails or is interrupted.
 from __future__ import annotations
 
 import json
+import multiprocessing
 import os
 import shutil
 import signal
-import subprocess
 import sys
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
+from rkmpc.config.car import CarConfig
+from rkmpc.config.loader import load_preset
+from rkmpc.config.ros import LatencySettings
 from rkmpc.core.errors import ParameterError, RkmpcError
 from rkmpc.core.io import check_output_folder, write_json_atomic
-from rkmpc.ros.sim_config import CLOCKS
+from rkmpc.ros.config import NodeTask
+from rkmpc.ros.sim_config import CLOCKS, SimNodeConfig
 from rkmpc.ros.workflow_report import build_report, write_report
 
 __all__ = ["MARKER", "STEERING_TOPIC", "WorkflowConfig", "WorkflowError", "prepare_folder", "run_workflow"]
@@ -120,6 +127,40 @@ class WorkflowConfig:
             )
 
 
+def _child(
+    name: str, target: Callable[..., int], args: tuple[Any, ...], log: str, env: dict[str, str]
+) -> None:
+    """A workflow process: its own session, its output to ``log``, its environment, then ``target``."""
+    os.setsid()  # a Ctrl-C at the terminal reaches the workflow, which stops its processes in order
+    sink = os.open(log, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+    os.dup2(sink, 1)
+    os.dup2(sink, 2)
+    sys.stdout = open(1, "w", buffering=1, closefd=False)
+    sys.stderr = open(2, "w", buffering=1, closefd=False)
+    os.environ.clear()
+    os.environ.update(env)
+    try:
+        code = target(*args)
+    except (RkmpcError, ValueError, OSError) as exc:
+        print(f"rkmpc {name}: error: {exc}", file=sys.stderr)
+        code = 2
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(code)
+
+
+def _node(car: CarConfig, task: NodeTask, out: str, bag: str | None) -> int:
+    from rkmpc.ros.node import run_node
+
+    return run_node(car, task, out=Path(out), record=None if bag is None else Path(bag))
+
+
+def _sim_node(config: SimNodeConfig, out: str) -> int:
+    from rkmpc.ros.sim_node import run_sim_node
+
+    return run_sim_node(config, out=Path(out))
+
+
 @dataclass
 class _Run:
     """Processes started by the workflow, their environment and where their output goes."""
@@ -128,52 +169,36 @@ class _Run:
     out: Path
     env: dict[str, str]
     say: Callable[[str], None]
-    processes: list[tuple[subprocess.Popen[bytes], Path]] = field(default_factory=list)
+    car: CarConfig
+    processes: list[tuple[Any, Path]] = field(default_factory=list)
     commands: list[str] = field(default_factory=list)
 
-    def start(self, name: str, args: list[str]) -> subprocess.Popen[bytes]:
+    def start(self, name: str, target: Callable[..., int], args: tuple[Any, ...], what: str) -> Any:
+        """Start ``target(*args)`` in a process of its own (spawned: nothing of this one is inherited)."""
         log = self.out / "logs" / f"{name}.log"
-        self.commands.append("rkmpc " + " ".join(args))
-        with log.open("wb") as sink:
-            # A session of its own: a Ctrl-C at the terminal reaches the workflow, which stops its
-            # processes in order (the node then closes its bag).
-            process = subprocess.Popen(
-                [sys.executable, "-m", "rkmpc.cli", *args],
-                env=self.env,
-                stdout=sink,
-                stderr=subprocess.STDOUT,
-                start_new_session=True,
-            )
+        self.commands.append(what)
+        process = multiprocessing.get_context("spawn").Process(
+            target=_child, args=(name, target, args, str(log), self.env), name=name
+        )
+        process.start()
         self.processes.append((process, log))
         return process
 
-    def log_of(self, process: subprocess.Popen[bytes]) -> Path:
+    def log_of(self, process: Any) -> Path:
         return next(log for p, log in self.processes if p is process)
 
-    def run(self, name: str, args: list[str]) -> str:
-        """Run a command to its end; its output, or a :class:`WorkflowError`."""
-        process = self.start(name, args)
-        try:
-            code = process.wait(timeout=self.config.timeout)
-        except subprocess.TimeoutExpired:
-            log = self.log_of(process)
-            raise WorkflowError(f"{name}: no end within {self.config.timeout:g} s; see {log}") from None
-        text = self.log_of(process).read_text(errors="replace")
-        if code != 0:
-            raise WorkflowError(f"{name} failed (exit {code}): {_tail(text)} (log: {self.log_of(process)})")
-        return text
-
-    def stop(self, process: subprocess.Popen[bytes]) -> int:
+    def stop(self, process: Any) -> int:
         """Ctrl-C (SIGINT), then SIGTERM, then SIGKILL, each after a grace period; the exit status."""
         for stop, grace in ((signal.SIGINT, _GRACE_S), (signal.SIGTERM, 5.0), (signal.SIGKILL, None)):
-            if process.poll() is not None:
+            if process.exitcode is not None or process.pid is None:
                 break
-            process.send_signal(stop)
             try:
-                process.wait(timeout=grace)
-            except subprocess.TimeoutExpired:
-                continue
-        return int(process.returncode)
+                os.kill(process.pid, stop)
+            except ProcessLookupError:
+                break
+            process.join(grace)
+        process.join()
+        return int(process.exitcode)
 
     def stop_all(self) -> None:
         for process, _ in reversed(self.processes):
@@ -204,7 +229,7 @@ def run_workflow(config: WorkflowConfig, say: Callable[[str], None] | None = Non
     for sub in ("logs", "cars", "models", "data"):
         (out / sub).mkdir()
     write_json_atomic(out / MARKER, {"config": asdict(config), "state": "running"})
-    run = _Run(config, out, _environment(config, out), tell)
+    run = _Run(config, out, _environment(config, out), tell, load_preset("f1tenth"))
     tell(f"ROS_DOMAIN_ID={run.env['ROS_DOMAIN_ID']}, discovery on this machine only, {config.clock} clock")
     try:
         report = _stages(run)
@@ -223,20 +248,12 @@ def _stages(run: _Run) -> dict[str, Any]:
     if record["sim"]["outcome"] != "completed":
         raise WorkflowError(f"the recording laps were not completed: {record['sim']['outcome']}")
     tell("2/5 importing the bag")
-    data = out / "data" / "laps.npz"
-    bag = str(out / "record" / "bag")
-    imported = run.run(
-        "collect", ["collect", "--from-bag", bag, "--steer-topic", STEERING_TOPIC, "--out", str(data)]
-    )
+    imported = _import(run)
     models: dict[str, dict[str, str]] = {}
-    tell("3/5 training the residual model and identifying the car")
+    tell("3/5 learning the residual model and identifying the car")
     for kind, name in (("residual", "residual.npz"), ("identified", "identified.json")):
         path = out / "models" / name
-        text = run.run(
-            f"train-{kind}",
-            ["train", "--data", str(data), "--kind", kind, "--seed", str(config.seed), "--out", str(path)],
-        )
-        models[kind] = {"file": str(path), "report": text.strip()}
+        models[kind] = {"file": str(path), "report": _learn(run, kind, path)}
     table: dict[str, dict[str, Any]] = {}
     for controller in config.controllers:
         tell(f"4/5 driving {controller} for a lap")
@@ -286,26 +303,52 @@ def _environment(config: WorkflowConfig, out: Path) -> dict[str, str]:
     return env
 
 
-def _car_file(
-    run: _Run, name: str, controller: str, models: dict[str, dict[str, str]], delay: float, compensate: bool
-) -> Path:
-    """The node's YAML file of a run (JSON values are YAML)."""
-    from rkmpc.learning.recipes import recipe_for
+def _import(run: _Run) -> str:
+    """The recorded bag as ``data/laps.npz`` (``rkmpc collect --from-bag``); its summary line."""
+    from rkmpc.learning.data.bags import BagImportConfig, import_bag
 
-    settings: dict[str, Any] = {
-        "track": run.config.track,
-        "controller": controller,
-        "trigger": "odometry" if run.config.clock == "lockstep" else "timer",
-        "topics": {"steering": STEERING_TOPIC},
-    }
-    recipe = recipe_for(controller)
-    if recipe is not None:
-        settings["model"] = models[recipe.kind]["file"]
-    if compensate:
-        settings["latency"] = {"compensate": True, "actuation": delay}
-    path = run.out / "cars" / f"{name}.yaml"
-    path.write_text("".join(f"{key}: {json.dumps(value)}\n" for key, value in settings.items()))
-    return path
+    bag, data = run.out / "record" / "bag", run.out / "data" / "laps.npz"
+    run.commands.append(f"rkmpc collect --from-bag {bag} --steer-topic {STEERING_TOPIC} --out {data}")
+    imported = import_bag(bag, run.car.vehicle, BagImportConfig(steer_topic=STEERING_TOPIC))
+    imported.save(data)
+    episodes = len(set(imported.episode.tolist()))
+    return f"{len(imported)} transitions in {episodes} episode(s) from {bag} -> {data}"
+
+
+def _learn(run: _Run, kind: str, path: Path) -> str:
+    """The ``kind`` model of the imported laps (``rkmpc train --kind KIND``); what it printed."""
+    from rkmpc.experiments.training import train_to_file
+    from rkmpc.learning.contract import Provenance
+    from rkmpc.learning.data.dataset import TransitionDataset
+
+    data = run.out / "data" / "laps.npz"
+    run.commands.append(f"rkmpc train --data {data} --kind {kind} --seed {run.config.seed} --out {path}")
+    car = run.car
+    made_for = Provenance(vehicle=car.preset, dt=car.ros.period, wheelbase=car.vehicle.wheelbase)
+    lines = train_to_file(
+        TransitionDataset.load(data),
+        made_for,
+        car.vehicle,
+        kind,
+        path,
+        seed=run.config.seed,
+        source=str(data),
+    )
+    return "\n".join(lines)
+
+
+def _car_of(run: _Run, name: str, compensate: bool, delay: float) -> CarConfig:
+    """The car of one run (its ``[ros]`` section), written to ``cars/<name>.json``."""
+    ros = run.car.ros
+    ros = replace(
+        ros,
+        trigger="odometry" if run.config.clock == "lockstep" else "timer",
+        topics=replace(ros.topics, steering=STEERING_TOPIC),
+        latency=LatencySettings(compensate=True, actuation=delay) if compensate else ros.latency,
+    )
+    car = replace(run.car, ros=ros)
+    write_json_atomic(run.out / "cars" / f"{name}.json", car.to_json())
+    return car
 
 
 def _drive(
@@ -321,38 +364,56 @@ def _drive(
     compensate: bool = False,
 ) -> dict[str, Any]:
     """``sim-node`` and ``node`` for ``laps`` laps, their files in ``folder``; the two summaries."""
+    from rkmpc.learning.recipes import recipe_for
+
     config = run.config
-    car = _car_file(run, name, controller, models or {}, delay, compensate)
-    node_args = ["node", "--config", str(car), "--out", str(folder / "node")]
-    node = run.start(f"{name}-node", node_args + ([] if bag is None else ["--record", str(bag)]))
-    bound = str(config.timeout)
-    sim_args = ["sim-node", "--track", config.track, "--clock", config.clock, "--laps", str(laps)]
-    sim_args += [
-        "--steering-topic",
-        STEERING_TOPIC,
-        "--seed",
-        str(config.seed),
-        "--actuation-delay",
-        str(delay),
-    ]
-    sim_args += ["--startup-timeout", bound, "--answer-timeout", bound, "--out", str(folder / "sim")]
-    sim = run.start(f"{name}-sim", sim_args)
+    car = _car_of(run, name, compensate, delay)
+    recipe = recipe_for(controller)
+    model = None if recipe is None else (models or {})[recipe.kind]["file"]
+    task = NodeTask(track=config.track, controller=controller, model=model)
+    bag_text = "" if bag is None else f" --record {bag}"
+    node = run.start(
+        f"{name}-node",
+        _node,
+        (car, task, str(folder / "node"), None if bag is None else str(bag)),
+        f"rkmpc node --config cars/{name}.json --track {config.track} --controller {controller}"
+        + ("" if model is None else f" --model {model}")
+        + bag_text,
+    )
+    bound = config.timeout
+    sim_config = SimNodeConfig(
+        track=config.track,
+        clock=config.clock,
+        laps=laps,
+        steering_topic=STEERING_TOPIC,
+        seed=config.seed,
+        actuation_delay=delay,
+        startup_timeout=bound,
+        answer_timeout=bound,
+    )
+    sim = run.start(
+        f"{name}-sim",
+        _sim_node,
+        (sim_config, str(folder / "sim")),
+        f"rkmpc sim-node --track {config.track} --clock {config.clock} --laps {laps} "
+        f"--steering-topic {STEERING_TOPIC} --seed {config.seed} --actuation-delay {delay}",
+    )
     deadline = time.monotonic() + config.timeout
-    while sim.poll() is None:
-        if node.poll() is not None:
+    while sim.exitcode is None:
+        if node.exitcode is not None:
             raise WorkflowError(f"{name}: rkmpc node ended early: {_tail(run.log_of(node).read_text())}")
         if time.monotonic() > deadline:
             raise WorkflowError(
                 f"{name}: the lap took longer than {config.timeout:g} s; see {run.log_of(sim)}"
             )
-        time.sleep(0.2)
-    if sim.returncode != 0 and not (folder / "sim" / "summary.json").is_file():
+        sim.join(0.2)
+    if sim.exitcode != 0 and not (folder / "sim" / "summary.json").is_file():
         # The car failed without a lap to report (a bad track, say; a lap that ends off the track
         # exits 1 too, with its summary): its log says why. The node, stopped now, may not yet
         # have got as far as its own error.
         run.stop(node)
         raise WorkflowError(
-            f"{name}: rkmpc sim-node failed (exit {sim.returncode}): {_tail(run.log_of(sim).read_text())}"
+            f"{name}: rkmpc sim-node failed (exit {sim.exitcode}): {_tail(run.log_of(sim).read_text())}"
         )
     node_code = run.stop(node)
     if node_code != 0:

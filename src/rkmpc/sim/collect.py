@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from dataclasses import asdict, replace
 from typing import Any
 
@@ -22,7 +21,7 @@ def collect(
     laps: int = 2,
     seed: int = 0,
     noise: NoiseStd | None = None,
-    controller_options: Mapping[str, Any] | None = None,
+    model: object = None,
 ) -> TransitionDataset:
     """Drive ``controller`` for ``laps`` laps and return the logged transitions.
 
@@ -46,8 +45,8 @@ def collect(
         Seed of the run (measurement noise).
     noise : NoiseStd or None
         Measurement noise, or None for exact observations.
-    controller_options : mapping, optional
-        Options of the controller (a learned controller's ``model``), over the preset's.
+    model : optional
+        The model of a learned controller.
 
     Returns
     -------
@@ -62,21 +61,19 @@ def collect(
     _, data = record(
         scenario,
         RunSpec(controller, laps=laps, seed=seed, noise=noise),
-        controller_options=controller_options,
+        model=model,
     )
     return data
 
 
-def record(
-    scenario: Scenario, spec: RunSpec, *, controller_options: Mapping[str, Any] | None = None
-) -> tuple[SimResult, TransitionDataset]:
+def record(scenario: Scenario, spec: RunSpec, *, model: object = None) -> tuple[SimResult, TransitionDataset]:
     """Drive ``spec`` (:func:`rkmpc.sim.run.drive`): the run and its transitions (see :func:`collect`)."""
-    result = drive(scenario, spec, controller_options=controller_options)
+    result = drive(scenario, spec, model=model)
     all_versions = versions()
     metadata: dict[str, Any] = {
         "source": "collect",
         "vehicle": scenario.vehicle_name,
-        "car": None if scenario.car is None else scenario.car.name,
+        "car": scenario.car.plant.car,
         "track": scenario.track.name,
         "scale": scenario.track.scale,
         "dt": scenario.dt,
@@ -136,7 +133,7 @@ def collect_excitation(scenario: Scenario, *, n_samples: int = 50_000, seed: int
     metadata: dict[str, Any] = {
         "source": "excitation",
         "vehicle": scenario.vehicle_name,
-        "car": None if scenario.car is None else scenario.car.name,
+        "car": scenario.car.plant.car,
         "dt": scenario.dt,
         "wheelbase": scenario.vehicle.wheelbase,
         "seed": seed,

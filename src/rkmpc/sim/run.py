@@ -2,14 +2,14 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass
 from typing import Any
 
-from rkmpc.control.registry import make_controller
 from rkmpc.core.errors import ParameterError
 from rkmpc.core.versions import versions
 from rkmpc.learning.contract import CONTRACT_KEY
+from rkmpc.sim.build import build_controller
 from rkmpc.sim.closed_loop import SimConfig, SimResult, simulate
 from rkmpc.sim.faults import DEFAULT_NOISE, NoiseFault, get_fault
 from rkmpc.sim.scenario import Scenario
@@ -76,19 +76,17 @@ def drive(
     scenario: Scenario,
     spec: RunSpec,
     *,
-    controller_options: Mapping[str, Any] | None = None,
+    model: object = None,
+    allow_mismatch: bool = False,
     on_step: Callable[[float, float], None] | None = None,
 ) -> SimResult:
     """Drive one controller in the scenario, on the plant the spec asks for.
 
-    The controller gets the scenario's options for it (its vehicle preset's or its car file's,
-    :meth:`rkmpc.sim.scenario.Scenario.options_for`), overridden
-    by ``controller_options``. The log's metadata records the controller,
+    The controller is built from the scenario's car (:func:`rkmpc.sim.build.build_controller`),
+    with ``model`` for a learned controller. The log's metadata records the controller,
     seed, fault and the scenario's contract (car, period, track scale).
     """
-    preset = scenario.options_for(spec.controller)
-    options = {**preset, **(controller_options or {})}
-    controller = make_controller(spec.controller, scenario.reference, scenario.vehicle, **options)
+    controller = build_controller(spec.controller, scenario, model, allow_mismatch=allow_mismatch)
     plant = build_plant(scenario, spec)
     result = simulate(
         plant,

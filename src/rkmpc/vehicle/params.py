@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field, fields, replace
 
 from rkmpc.core.errors import ParameterError
+from rkmpc.core.registry import Registry
 from rkmpc.core.validation import require_positive
 
 
@@ -246,3 +248,9 @@ def fullsize() -> VehicleParams:
         blend_speed_low=0.1,
         blend_speed_high=0.35,
     )
+
+
+#: Nominal parameter sets by name (a car preset's ``[vehicle] params``).
+PARAMS: Registry[Callable[[], VehicleParams]] = Registry(
+    "vehicle", {"f1tenth": f1tenth, "fullsize": fullsize}
+)

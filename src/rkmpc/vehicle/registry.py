@@ -5,6 +5,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
+from rkmpc.core.registry import Registry
 from rkmpc.vehicle.params import f1tenth
 from rkmpc.vehicle.plants.base import Plant
 from rkmpc.vehicle.plants.dynamic import DynamicPlant
@@ -23,10 +24,9 @@ def _make_fullsize(**options: Any) -> Plant:
 
 
 #: Plant factories by name; each accepts the plant's keyword options.
-PLANTS: dict[str, Callable[..., Plant]] = {
-    "f1tenth": _make_f1tenth,
-    "fullsize": _make_fullsize,
-}
+PLANTS: Registry[Callable[..., Plant]] = Registry(
+    "plant", {"f1tenth": _make_f1tenth, "fullsize": _make_fullsize}
+)
 
 
 def make_plant(name: str, **options: Any) -> Plant:
@@ -47,12 +47,7 @@ def make_plant(name: str, **options: Any) -> Plant:
 
     Raises
     ------
-    ValueError
+    UnknownNameError
         If ``name`` is not registered.
     """
-    try:
-        factory = PLANTS[name]
-    except KeyError:
-        known = ", ".join(sorted(PLANTS))
-        raise ValueError(f"unknown plant {name!r}; known plants: {known}") from None
-    return factory(**options)
+    return PLANTS[name](**options)

@@ -64,6 +64,7 @@ import numpy as np
 
 from rkmpc.core.errors import ParameterError
 from rkmpc.core.jsonutil import to_json_ready
+from rkmpc.core.registry import Registry, UnknownNameError
 from rkmpc.core.validation import require_nonnegative
 from rkmpc.vehicle.actuators import (
     AsymmetricSpeedLoop,
@@ -223,42 +224,45 @@ def _gym() -> CarSpec:
 
 
 #: Zoo variants by name.
-ZOO: dict[str, Callable[[], CarSpec]] = {
-    "home": lambda: _nominal("home", "the nominal car, composed of parts"),
-    "gym": _gym,
-    "overshoot": lambda: _nominal(
-        "overshoot",
-        "second-order servo with 20 % overshoot",
-        steering=SecondOrderServo(natural_frequency=25.0, damping=0.45, max_rate=5.0),
-    ),
-    "cheap-servo": lambda: _nominal(
-        "cheap-servo",
-        "slow analogue servo with 0.01 rad resolution",
-        steering=QuantisedServo(FirstOrderServo(0.25, 2.0), step=0.01),
-    ),
-    "low-grip": lambda: _nominal(
-        "low-grip",
-        "dusty floor: mu 0.7, acceleration capped at 2.5 m/s^2",
-        params=replace(f1tenth(), mu=0.7),
-        speed_loop=LagSpeedLoop(0.2, 2.5, 4.0),
-    ),
-    "heavy-long": lambda: _nominal(
-        "heavy-long",
-        "mass +30 %, wheelbase +10 %, centre of gravity 10 % further back",
-        params=_reshaped(f1tenth(), mass=1.3, wheelbase=1.1, cog_shift=0.1),
-    ),
-    "light-short": lambda: _nominal(
-        "light-short",
-        "mass -30 %, wheelbase -10 %, centre of gravity 10 % further forward",
-        params=_reshaped(f1tenth(), mass=0.7, wheelbase=0.9, cog_shift=-0.1),
-    ),
-    "laggy-odom": lambda: _nominal(
-        "laggy-odom",
-        "odometry 40 ms late, with noise",
-        odometry_latency=0.04,
-        odometry_noise=NoiseStd(position=0.02, yaw=0.01, speed=0.05, yaw_rate=0.02),
-    ),
-}
+ZOO: Registry[Callable[[], CarSpec]] = Registry(
+    "zoo car",
+    {
+        "home": lambda: _nominal("home", "the nominal car, composed of parts"),
+        "gym": _gym,
+        "overshoot": lambda: _nominal(
+            "overshoot",
+            "second-order servo with 20 % overshoot",
+            steering=SecondOrderServo(natural_frequency=25.0, damping=0.45, max_rate=5.0),
+        ),
+        "cheap-servo": lambda: _nominal(
+            "cheap-servo",
+            "slow analogue servo with 0.01 rad resolution",
+            steering=QuantisedServo(FirstOrderServo(0.25, 2.0), step=0.01),
+        ),
+        "low-grip": lambda: _nominal(
+            "low-grip",
+            "dusty floor: mu 0.7, acceleration capped at 2.5 m/s^2",
+            params=replace(f1tenth(), mu=0.7),
+            speed_loop=LagSpeedLoop(0.2, 2.5, 4.0),
+        ),
+        "heavy-long": lambda: _nominal(
+            "heavy-long",
+            "mass +30 %, wheelbase +10 %, centre of gravity 10 % further back",
+            params=_reshaped(f1tenth(), mass=1.3, wheelbase=1.1, cog_shift=0.1),
+        ),
+        "light-short": lambda: _nominal(
+            "light-short",
+            "mass -30 %, wheelbase -10 %, centre of gravity 10 % further forward",
+            params=_reshaped(f1tenth(), mass=0.7, wheelbase=0.9, cog_shift=-0.1),
+        ),
+        "laggy-odom": lambda: _nominal(
+            "laggy-odom",
+            "odometry 40 ms late, with noise",
+            odometry_latency=0.04,
+            odometry_noise=NoiseStd(position=0.02, yaw=0.01, speed=0.05, yaw_rate=0.02),
+        ),
+    },
+)
 
 _RANDOM_PREFIX = "random-"
 
@@ -276,8 +280,7 @@ def get_car(name: str) -> CarSpec:
         seed = name[len(_RANDOM_PREFIX) :]
         if seed.isdigit():
             return random_car(int(seed))
-    known = ", ".join([*ZOO, f"{_RANDOM_PREFIX}<seed>"])
-    raise ParameterError(f"unknown car {name!r}; known: {known}")
+    raise UnknownNameError("zoo car", name, [*ZOO, f"{_RANDOM_PREFIX}<seed>"])
 
 
 #: Draws of a steering actuator, one of which :func:`random_car` picks uniformly.

@@ -1,15 +1,22 @@
-"""Settings of the residual MPC of ``rkmpc`` and ``rkmpc-paper`` (paper Eq. MPC2)."""
+"""Settings of the residual MPC (paper Eq. MPC2): what ``rkmpc-paper`` and ``rkmpc`` share, and rkmpc's own.
+
+:class:`ResidualMPCConfig` holds what both residual MPCs read (weights, bounds, solver);
+:class:`RKMPCConfig` adds what only ``rkmpc`` reads (the speed-priced steering, the slip drift,
+the trust guard, online adaptation). ``rkmpc-paper`` takes a :class:`ResidualMPCConfig` and refuses
+an :class:`RKMPCConfig`, so a setting it cannot use is refused where it is given, never ignored.
+"""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from typing import Any, Self
 
 from rkmpc.control.learned.adaptation import AdaptationConfig
 from rkmpc.control.learned.trust import TrustConfig
 from rkmpc.core.errors import ParameterError
 from rkmpc.core.validation import require_nonnegative, require_positive_value
 
-__all__ = ["ResidualMPCConfig"]
+__all__ = ["PAPER_RESIDUAL", "RKMPCConfig", "ResidualMPCConfig"]
 
 
 @dataclass(frozen=True)
@@ -36,26 +43,6 @@ class ResidualMPCConfig:
         Weight of the squared change of the steering correction from one step to the next
         (the first against the correction applied last), so the correction does not make the
         commanded wheel angle move faster than the LMPC's; 0 for none.
-    lateral_accel_weight : float
-        Weight (s^4/m^2) of the squared lateral acceleration a steering correction adds at the
-        speed the LMPC plans for that step, ``(v_k**2 / L * ddelta_k)**2`` (``rkmpc`` only; 0 for
-        none). A wheel-angle change moves the car by ``v**2 / L`` times as much at speed ``v``,
-        so a fixed ``steer_weight`` that lets the correction act in slow corners lets it
-        oscillate on fast straights; this term makes the correction's price grow with ``v**4``.
-    slip_drift : bool
-        Whether the residual MPC's prediction carries the sideways drift of the measured slip
-        angle (``rkmpc`` only). The kinematic model moves along its heading whatever its input,
-        so neither the LMPC's prediction nor the learned ``U_p`` sees a car that slides: with
-        slip angle ``beta`` (rad, velocity direction minus heading) held over the horizon, the
-        predicted position moves by ``v_r T beta`` per step across the reference heading. A
-        step whose slip angle is not measured (NaN) goes without it, and is counted.
-    trust : TrustConfig
-        Out-of-distribution guard: how the correction fades toward the LMPC's command when the
-        state leaves the model's training range or its predictions go wrong
-        (:mod:`rkmpc.control.learned.trust`; used by ``rkmpc``, whose model predicts its features).
-    adaptation : AdaptationConfig
-        Online recursive least squares on the output map of the ``rkmpc`` model
-        (:mod:`rkmpc.control.learned.adaptation`); off by default.
     """
 
     position_weight: float = 1.0
@@ -67,10 +54,6 @@ class ResidualMPCConfig:
     solver: str = "daqp"
     max_iterations: int = 200
     steer_rate_weight: float = 0.0
-    lateral_accel_weight: float = 0.0
-    slip_drift: bool = False
-    trust: TrustConfig = field(default_factory=TrustConfig)
-    adaptation: AdaptationConfig = field(default_factory=AdaptationConfig)
 
     def __post_init__(self) -> None:
         require_nonnegative(
@@ -80,26 +63,19 @@ class ResidualMPCConfig:
             "speed_weight",
             "steer_weight",
             "steer_rate_weight",
-            "lateral_accel_weight",
         )
-        if not isinstance(self.slip_drift, bool):
-            raise ParameterError(
-                f"ResidualMPCConfig.slip_drift must be True or False, got {self.slip_drift!r}"
-            )
         if self.speed_weight <= 0 or self.steer_weight <= 0:
             raise ParameterError("ResidualMPCConfig: speed_weight and steer_weight must be > 0")
         if not (self.max_speed_correction > 0 and self.max_steer_correction > 0):
             raise ParameterError("ResidualMPCConfig: correction bounds must be > 0")
 
-    def scaled(self, length: float, speed: float) -> ResidualMPCConfig:
+    def scaled(self, length: float, speed: float) -> Self:
         """These settings carried over to a car ``length`` times as long that drives ``speed`` times as fast.
 
         The cost keeps its balance when every term grows like the squared position error
         (``length**2``): wheel angles on a track of the car's size are alike, so the weight of the
         steering correction grows with ``length**2``; speed errors grow with ``speed``, so the weight
-        of the speed correction grows with ``(length / speed)**2``, and the weight of the lateral
-        acceleration a steering correction adds (which grows with ``speed**2 / length``) with
-        ``(length**2 / speed**2)**2``. The speed correction's bound grows
+        of the speed correction grows with ``(length / speed)**2``. The speed correction's bound grows
         with ``speed``; the steering bound stays (wheel angles are alike). Position and heading
         weights, solver and iteration budget stay.
 
@@ -113,16 +89,71 @@ class ResidualMPCConfig:
         Returns
         -------
         ResidualMPCConfig
-            ``self`` itself when both ratios are 1.
+            Of the same class; ``self`` itself when both ratios are 1.
         """
         k = require_positive_value(length, "length")
         v = require_positive_value(speed, "speed")
         if k == 1.0 and v == 1.0:
             return self
-        return replace(
-            self,
-            speed_weight=self.speed_weight * (k / v) ** 2,
-            steer_weight=self.steer_weight * k**2,
-            lateral_accel_weight=self.lateral_accel_weight * (k / v) ** 4,
-            max_speed_correction=self.max_speed_correction * v,
-        )
+        changes: dict[str, Any] = {
+            "speed_weight": self.speed_weight * (k / v) ** 2,
+            "steer_weight": self.steer_weight * k**2,
+            "max_speed_correction": self.max_speed_correction * v,
+            **self._scaled_own(k, v),
+        }
+        return replace(self, **changes)
+
+    def _scaled_own(self, length: float, speed: float) -> dict[str, float]:
+        """Fields a subclass adds, carried over by :meth:`scaled` (none here)."""
+        return {}
+
+
+@dataclass(frozen=True)
+class RKMPCConfig(ResidualMPCConfig):
+    """The residual MPC of ``rkmpc``: :class:`ResidualMPCConfig` and what only ``rkmpc`` reads.
+
+    Parameters
+    ----------
+    lateral_accel_weight : float
+        Weight (s^4/m^2) of the squared lateral acceleration a steering correction adds at the
+        speed the LMPC plans for that step, ``(v_k**2 / L * ddelta_k)**2`` (0 for
+        none). A wheel-angle change moves the car by ``v**2 / L`` times as much at speed ``v``,
+        so a fixed ``steer_weight`` that lets the correction act in slow corners lets it
+        oscillate on fast straights; this term makes the correction's price grow with ``v**4``.
+    slip_drift : bool
+        Whether the residual MPC's prediction carries the sideways drift of the measured slip
+        angle. The kinematic model moves along its heading whatever its input,
+        so neither the LMPC's prediction nor the learned ``U_p`` sees a car that slides: with
+        slip angle ``beta`` (rad, velocity direction minus heading) held over the horizon, the
+        predicted position moves by ``v_r T beta`` per step across the reference heading. A
+        step whose slip angle is not measured (NaN) goes without it, and is counted.
+    trust : TrustConfig
+        Out-of-distribution guard: how the correction fades toward the LMPC's command when the
+        state leaves the model's training range or its predictions go wrong
+        (:mod:`rkmpc.control.learned.trust`).
+    adaptation : AdaptationConfig
+        Online recursive least squares on the output map of the model
+        (:mod:`rkmpc.control.learned.adaptation`); off by default.
+    """
+
+    lateral_accel_weight: float = 0.0
+    slip_drift: bool = False
+    trust: TrustConfig = field(default_factory=TrustConfig)
+    adaptation: AdaptationConfig = field(default_factory=AdaptationConfig)
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        require_nonnegative(self, "lateral_accel_weight")
+        if not isinstance(self.slip_drift, bool):
+            raise ParameterError(f"RKMPCConfig.slip_drift must be True or False, got {self.slip_drift!r}")
+        if not isinstance(self.trust, TrustConfig) or not isinstance(self.adaptation, AdaptationConfig):
+            raise ParameterError("RKMPCConfig.trust and .adaptation must be TrustConfig and AdaptationConfig")
+
+    def _scaled_own(self, length: float, speed: float) -> dict[str, float]:
+        # The lateral acceleration a steering correction adds grows with speed**2 / length.
+        return {"lateral_accel_weight": self.lateral_accel_weight * (length / speed) ** 4}
+
+
+#: The residual MPC of ``rkmpc-paper`` on the 1:10 car: the literal model mispredicts the pose, so
+#: only heavily weighted corrections keep it on track.
+PAPER_RESIDUAL = ResidualMPCConfig(heading_weight=5.0, speed_weight=5.0, steer_weight=5000.0)

@@ -44,7 +44,7 @@ from rkmpc.control.learned.lifted import (
     recipe_state,
     reference_in_local_frame,
 )
-from rkmpc.control.learned.residual_config import ResidualMPCConfig
+from rkmpc.control.learned.residual_config import PAPER_RESIDUAL, ResidualMPCConfig, RKMPCConfig
 from rkmpc.control.learned.trust import CorrectionTrust
 from rkmpc.control.linear.lmpc import LinearMPC, LMPCConfig, Prediction
 from rkmpc.control.qp import make_qp
@@ -55,6 +55,7 @@ from rkmpc.learning.features import FeatureMap
 from rkmpc.vehicle.params import VehicleParams
 
 if TYPE_CHECKING:
+    from rkmpc.control.settings import ControllerSettings
     from rkmpc.track.reference import Reference
 
 
@@ -67,7 +68,7 @@ class _ResidualBase(Controller):
     """LMPC baseline plus a residual QP; subclasses supply the residual problem."""
 
     #: Residual MPC settings used when none are given.
-    default_config = ResidualMPCConfig()
+    default_config: ResidualMPCConfig = ResidualMPCConfig()
     #: Whether the residual QP's Hessian changes every step (then it is factorised with LAPACK).
     varying_hessian = True
 
@@ -84,6 +85,7 @@ class _ResidualBase(Controller):
         self.vehicle = vehicle
         self.model = model
         self.config = config if config is not None else self.default_config
+        self._check_config(self.config)
         self.state: FeatureMap = recipe_state(self.name)
         self.lmpc = LinearMPC(reference, vehicle, lmpc_config)
         self.dt = self.lmpc.config.dt
@@ -113,6 +115,21 @@ class _ResidualBase(Controller):
         # The Hessian the residual QP holds (a fixed one need not be passed again).
         self._qp_hessian: np.ndarray | None = None
         self._precompute()
+
+    def _check_config(self, config: ResidualMPCConfig) -> None:
+        """Refuse settings of another class than this controller's (subclasses)."""
+        if type(config) is not type(self.default_config):
+            raise ParameterError(
+                f"{self.name} takes a {type(self.default_config).__name__}, got {type(config).__name__}"
+            )
+
+    @classmethod
+    def from_settings(
+        cls, reference: Reference, vehicle: VehicleParams, settings: ControllerSettings, model: object = None
+    ) -> _ResidualBase:
+        config = getattr(settings, cls.settings_field or "")
+        model = cls.require_model(model)
+        return cls(reference, vehicle, model, config=config, lmpc_config=settings.lmpc)  # type: ignore[arg-type]
 
     def _precompute(self) -> None:
         """Compute what does not change between steps (subclasses)."""
@@ -216,6 +233,9 @@ class ResidualKoopmanMPC(_ResidualBase):
     """
 
     name = "rkmpc"
+    settings_field = "rkmpc"
+    default_config: RKMPCConfig = RKMPCConfig()
+    config: RKMPCConfig
 
     def _precompute(self) -> None:
         # Time invariant: U_p over the horizon = Mz z0 + Mu U, computed once.
@@ -341,17 +361,11 @@ class PaperResidualKoopmanMPC(_ResidualBase):
     """
 
     name = "rkmpc-paper"
-    #: The literal model mispredicts the pose, so only heavily weighted corrections keep it on track.
-    default_config = ResidualMPCConfig(heading_weight=5.0, speed_weight=5.0, steer_weight=5000.0)
+    settings_field = "rkmpc_paper"
+    default_config = PAPER_RESIDUAL
     varying_hessian = False
 
     def _precompute(self) -> None:
-        if self.config.lateral_accel_weight > 0.0:
-            raise ParameterError(
-                "rkmpc-paper: lateral_accel_weight must be 0 (its residual QP keeps one Hessian)"
-            )
-        if self.config.slip_drift:
-            raise ParameterError("rkmpc-paper: slip_drift must be False (its model predicts the pose itself)")
         m = self.model
         self._Mz, self._Mu = lifted_prediction(m.A_, m.B_, m.C_[:3], None, self.horizon, first=1)
         # The car sits at the origin of its own frame: the features of any observation are the pose 0.

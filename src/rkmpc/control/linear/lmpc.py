@@ -79,6 +79,7 @@ class LinearMPC(TrackingController):
     """
 
     name = "lmpc"
+    settings_field = "lmpc"
     #: Model states after ``[x, y, theta]`` (subclasses with richer models).
     extra_states = 0
     config: LMPCConfig

@@ -88,6 +88,7 @@ class KinematicNMPC(TrackingController):
     """
 
     name = "nmpc"
+    settings_field = "nmpc"
     #: Number of model states (the first three are always ``x, y, theta``).
     nx = 3
     #: RK4 steps per period when the config leaves it open.

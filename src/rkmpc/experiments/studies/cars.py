@@ -1,35 +1,33 @@
-"""Every controller on cars it was not built for: :func:`study_cars`.
+"""Every controller on cars it was not built for: :class:`CarsStudy`.
 
 For each car of the zoo (:mod:`rkmpc.vehicle.zoo`), track and seed, one job
-runs the comparison of :func:`rkmpc.experiments.compare.compare` with
-``car=<variant>``: two LMPC laps are recorded on THAT car, the learned
+runs the comparison of :func:`rkmpc.experiments.compare.compare` on that car:
+two LMPC laps are recorded on THAT car, the learned
 controllers are trained or identified from them (KMPC from random excitation
 of that car), and every controller, built with the nominal parameters, drives
-it. Jobs run in parallel (:func:`rkmpc.experiments.parallel.run_jobs`); each
+it. Jobs run in parallel (:func:`rkmpc.experiments.study.run_study`); each
 car is summarised like a tracks study, and :meth:`CarsStudyResult.targets`
 checks the targets of RKMPC against the LMPC on every (car, track, seed).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
-from dataclasses import asdict, dataclass, replace
-from typing import Any
+from collections.abc import Mapping, Sequence
+from dataclasses import asdict, dataclass
+from typing import Any, ClassVar
 
 from rkmpc.analysis.statistics import ControllerSummary, Stats, summarise_runs
 from rkmpc.analysis.tables import fmt, markdown
+from rkmpc.config.car import CarConfig
 from rkmpc.core.errors import ParameterError
-from rkmpc.experiments.compare import CompareConfig
-from rkmpc.experiments.journal import JobJournal
-from rkmpc.experiments.parallel import JobOutcome
-from rkmpc.experiments.studies.common import check_parallel, json_object, str_tuple, study_versions
-from rkmpc.experiments.studies.tracks import (
-    TrackJob,
-    TracksStudyConfig,
-    run_track_jobs,
-    summary_table,
-    train_shared_models,
-)
+from rkmpc.experiments.compare import CompareConfig, compare
+from rkmpc.experiments.journal import canonical_json
+from rkmpc.experiments.parallel import Job, JobOutcome
+from rkmpc.experiments.results import TrackResult
+from rkmpc.experiments.studies.common import json_object, str_tuple
+from rkmpc.experiments.studies.tables import summary_table
+from rkmpc.experiments.studies.tracks import TrackJob, TracksStudyConfig, job_records, train_shared_models
+from rkmpc.experiments.study import Say, StudyRun
 from rkmpc.vehicle.zoo import get_car
 
 __all__ = [
@@ -37,9 +35,9 @@ __all__ = [
     "DEFAULT_CARS",
     "CarJob",
     "CarTargets",
+    "CarsStudy",
     "CarsStudyConfig",
     "CarsStudyResult",
-    "study_cars",
 ]
 
 #: Cars of ``rkmpc study cars`` by default: every named variant but the nominal one.
@@ -51,15 +49,15 @@ CARS_CONTROLLERS = ("pp", "lmpc", "lmpc-id", "nmpc-dynamic", "kmpc", "rkmpc-pape
 
 @dataclass(frozen=True)
 class CarsStudyConfig:
-    """Settings of :func:`study_cars`.
+    """Settings of the cars study.
 
     Parameters
     ----------
     cars : sequence of str
         Zoo variants (:func:`rkmpc.vehicle.zoo.get_car` names, ``"random-<seed>"`` included).
     tracks : TracksStudyConfig
-        Tracks, controllers, seeds and comparison settings, applied to every car
-        (its ``vehicle`` must be ``"f1tenth"``: the zoo holds 1:10 cars).
+        Tracks, controllers, seeds and comparison settings, applied to every car (its car must be
+        a 1:10 car on the ``f1tenth`` plant, whose nominal model the controllers keep).
     """
 
     cars: Sequence[str]
@@ -67,19 +65,25 @@ class CarsStudyConfig:
 
     def __post_init__(self) -> None:
         cars = str_tuple("CarsStudyConfig.cars", self.cars)
-        for name in cars:
-            get_car(name)
         object.__setattr__(self, "cars", cars)
         if not isinstance(self.tracks, TracksStudyConfig):
             raise ParameterError("CarsStudyConfig.tracks must be a TracksStudyConfig")
-        if self.tracks.vehicle != "f1tenth":
-            raise ParameterError(f"CarsStudyConfig: zoo cars are 1:10 cars, not {self.tracks.vehicle!r}")
-        if "car" in self.tracks.study_options:
-            raise ParameterError("CarsStudyConfig: give the cars in `cars`, not in the tracks' study_options")
+        for name in cars:
+            self.car(name)
+
+    def car(self, name: str) -> CarConfig:
+        """The study's car driving the zoo car ``name``."""
+        try:
+            return self.tracks.car.with_zoo_car(name)
+        except ParameterError as exc:
+            raise ParameterError(f"CarsStudyConfig.cars: {exc}") from None
 
     def job_config(self, car: str, track: str, seed: int) -> CompareConfig:
         """The comparison of one (car, track, seed) job."""
-        return replace(self.tracks.job_config(track, seed), car=car)
+        return self.tracks.job_config(track, seed, self.car(car))
+
+    def to_json(self) -> dict[str, Any]:
+        return {"cars": list(self.cars), **self.tracks.to_json()}
 
 
 @dataclass(frozen=True)
@@ -132,12 +136,10 @@ class CarTargets:
 
 @dataclass(frozen=True)
 class CarsStudyResult:
-    """What :func:`study_cars` found: a summary per car and controller, every job."""
+    """What :class:`CarsStudy` found: a summary per car and controller, every job."""
 
     config: CarsStudyConfig
-    parallel: dict[str, Any]
-    versions: dict[str, str]
-    wall_s: float
+    run: StudyRun
     summary: dict[str, dict[str, ControllerSummary]]
     jobs: list[CarJob]
 
@@ -195,10 +197,8 @@ class CarsStudyResult:
             "seeds": list(self.config.tracks.seeds),
             "controllers": list(self.config.tracks.controllers),
             "baseline": self.config.tracks.baseline,
-            "config": asdict(self.config.tracks),
-            "parallel": self.parallel,
-            "versions": self.versions,
-            "wall_s": self.wall_s,
+            "config": self.config.to_json(),
+            **self.run.to_json(),
             "summary": {
                 car: {name: s.to_json() for name, s in per.items()} for car, per in self.summary.items()
             },
@@ -218,67 +218,65 @@ class CarsStudyResult:
             parts += [
                 f"### {car}: {get_car(car).summary}",
                 "",
-                summary_table(self.summary[car], self.config.tracks),
+                summary_table(self.summary[car], self.config.tracks.controllers, self.config.tracks.baseline),
                 "",
             ]
         parts += ["### RKMPC against the LMPC, every run", "", targets_table(self.targets())]
         return "\n".join(parts)
 
+    def figure(self) -> Any:
+        """Lateral error and completion per car and controller."""
+        from rkmpc.analysis.study_plots import plot_cars_study
 
-def study_cars(
-    config: CarsStudyConfig,
-    *,
-    n_jobs: int = 1,
-    backend: str = "loky",
-    address: str | None = None,
-    progress: Callable[[JobOutcome, int, int], None] | None = None,
-    say: Callable[[str], None] | None = None,
-    journal: JobJournal | None = None,
-) -> CarsStudyResult:
-    """Compare the controllers on every car, track and seed, in parallel, and summarise per car.
+        return plot_cars_study(*self.plot_data())
 
-    Track-independent models (KMPC's random-excitation model) are trained once
-    per car and seed in this process first, into the model cache the jobs read.
 
-    Parameters
-    ----------
-    config : CarsStudyConfig
-        Cars, and the tracks study applied to each.
-    n_jobs, backend, address
-        Where the jobs run: :func:`rkmpc.experiments.parallel.run_jobs`.
-    progress : callable, optional
-        ``progress(outcome, done, total)`` as each job finishes.
-    say : callable, optional
-        Called with a short message before each slow stage.
-    journal : JobJournal, optional
-        Finished jobs kept across runs (:func:`~rkmpc.experiments.studies.tracks.run_track_jobs`).
-    """
-    if not isinstance(config, CarsStudyConfig):
-        raise ParameterError("study_cars: config must be a CarsStudyConfig")
-    check_parallel(n_jobs, backend)
-    tell = say if say is not None else (lambda _msg: None)
-    tracks = config.tracks
-    for car in config.cars:
-        train_shared_models([config.job_config(car, tracks.tracks[0], seed) for seed in tracks.seeds], tell)
-    keys = [(car, spec, seed) for car in config.cars for spec in tracks.tracks for seed in tracks.seeds]
-    tell(f"{len(config.cars)} cars x {len(tracks.tracks)} tracks x {len(tracks.seeds)} seeds")
-    named = [(f"{car} {spec} seed {seed}", config.job_config(car, spec, seed)) for car, spec, seed in keys]
-    jobs, wall = run_track_jobs(
-        named, n_jobs=n_jobs, backend=backend, address=address, progress=progress, journal=journal
-    )
-    records = [CarJob(car=car, job=job) for (car, _, _), job in zip(keys, jobs, strict=True)]
-    summary = {}
-    for car in config.cars:
-        groups = [cj.job.group() for cj in records if cj.car == car]
-        summary[car], _ = summarise_runs(groups, tracks.controllers, tracks.baseline)
-    return CarsStudyResult(
-        config=config,
-        parallel={"n_jobs": n_jobs, "backend": backend, "address": address},
-        versions=study_versions(),
-        wall_s=wall,
-        summary=summary,
-        jobs=records,
-    )
+@dataclass(frozen=True)
+class CarsStudy:
+    """Every controller on cars it was not built for (``rkmpc study cars``)."""
+
+    config: CarsStudyConfig
+    name: ClassVar[str] = "cars"
+
+    def keys(self) -> list[tuple[str, str, int]]:
+        tracks = self.config.tracks
+        return [
+            (car, spec, seed) for car in self.config.cars for spec in tracks.tracks for seed in tracks.seeds
+        ]
+
+    def prepare(self, say: Say) -> None:
+        tracks = self.config.tracks
+        for car in self.config.cars:
+            train_shared_models([self.config.job_config(car, tracks.tracks[0], s) for s in tracks.seeds], say)
+
+    def jobs(self) -> list[Job]:
+        return [
+            Job(f"{car} {spec} seed {seed}", compare, (cfg,), key=canonical_json(cfg.to_json()))
+            for (car, spec, seed) in self.keys()
+            for cfg in (self.config.job_config(car, spec, seed),)
+        ]
+
+    def journal_settings(self) -> dict[str, Any]:
+        return {}  # everything else is in each job's key (its whole comparison)
+
+    def encode(self, value: TrackResult) -> dict[str, Any]:
+        return value.to_json()
+
+    def decode(self, data: Any) -> TrackResult:
+        return TrackResult.from_json(data)
+
+    def result(self, outcomes: list[JobOutcome], run: StudyRun) -> CarsStudyResult:
+        keys = self.keys()
+        configs = [self.config.job_config(*key) for key in keys]
+        records = [
+            CarJob(car=key[0], job=job) for key, job in zip(keys, job_records(configs, outcomes), strict=True)
+        ]
+        tracks = self.config.tracks
+        summary = {}
+        for car in self.config.cars:
+            groups = [cj.job.group() for cj in records if cj.car == car]
+            summary[car], _ = summarise_runs(groups, tracks.controllers, tracks.baseline)
+        return CarsStudyResult(config=self.config, run=run, summary=summary, jobs=records)
 
 
 def targets_table(targets: Sequence[CarTargets]) -> str:

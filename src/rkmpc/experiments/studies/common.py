@@ -1,34 +1,28 @@
-"""What the studies share: settings checks, track lists, versions."""
+"""What the studies share: settings checks and track lists."""
 
 from __future__ import annotations
 
 from collections.abc import Iterable
-from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
+from rkmpc.config.car import CarConfig
 from rkmpc.control.registry import CONTROLLERS
 from rkmpc.core.errors import ParameterError
 from rkmpc.core.jsonutil import to_json_ready
 from rkmpc.core.validation import is_integer, is_positive_number
-from rkmpc.core.versions import versions
-from rkmpc.experiments.parallel import BACKENDS
-from rkmpc.sim.carfile import CarConfig
-from rkmpc.sim.scenario import VEHICLES
 from rkmpc.track.builtin import list_builtin_tracks
 
 __all__ = [
-    "check_car_config",
-    "check_parallel",
-    "check_scale_vehicle",
+    "check_car",
+    "check_scale",
     "check_track",
     "controller_names",
     "expand_tracks",
     "int_tuple",
     "json_object",
-    "settings_json",
     "str_tuple",
-    "study_versions",
+    "track_key",
     "track_label",
     "track_specs",
 ]
@@ -94,34 +88,17 @@ def controller_names(name: str, controllers: Any) -> tuple[str, ...]:
     return names
 
 
-def check_scale_vehicle(scale: Any, vehicle: Any) -> None:
-    """ParameterError for a scale that is not a positive number (or None) or an unknown vehicle."""
-    if scale is not None and not is_positive_number(scale):
-        raise ParameterError(f"scale must be a positive number or None, got {scale!r}")
-    if vehicle not in VEHICLES:
-        raise ParameterError(f"vehicle must be one of {sorted(VEHICLES)}, got {vehicle!r}")
-
-
-def check_car_config(name: str, car: Any, vehicle: str) -> CarConfig | None:
-    """``car``, checked: a :class:`CarConfig` of the ``vehicle`` preset, or None.
-
-    ParameterError naming ``name`` for anything else.
-    """
-    if car is None:
-        return None
+def check_car(name: str, car: Any) -> CarConfig:
+    """``car`` when it is a :class:`CarConfig`; ParameterError naming ``name`` otherwise."""
     if not isinstance(car, CarConfig):
-        raise ParameterError(f"{name} must be a CarConfig or None, got {car!r}")
-    if car.preset != vehicle:
-        raise ParameterError(f"{name} is a {car.preset!r} car but vehicle is {vehicle!r}")
+        raise ParameterError(f"{name} must be a CarConfig, got {car!r}")
     return car
 
 
-def check_parallel(n_jobs: int, backend: str) -> None:
-    """ParameterError for an unknown backend or a job count that is neither positive nor -1."""
-    if backend not in BACKENDS:
-        raise ParameterError(f"backend must be one of {list(BACKENDS)}, got {backend!r}")
-    if not is_integer(n_jobs) or n_jobs == 0 or n_jobs < -1:
-        raise ParameterError(f"n_jobs must be a positive integer or -1, got {n_jobs!r}")
+def check_scale(name: str, scale: Any) -> None:
+    """ParameterError for a scale that is not a positive number (or None)."""
+    if scale is not None and not is_positive_number(scale):
+        raise ParameterError(f"{name} must be a positive number or None, got {scale!r}")
 
 
 def track_label(spec: str) -> str:
@@ -147,22 +124,6 @@ def expand_tracks(items: Iterable[str | Path]) -> tuple[str, ...]:
         else:
             out.append(str(item))
     return tuple(out)
-
-
-def study_versions() -> dict[str, str]:
-    """:func:`rkmpc.core.versions.versions` plus the learning and parallel packages."""
-    return versions(extra=("torch", "joblib", "dask", "distributed", "ray"))
-
-
-def settings_json(settings: Any, car: CarConfig | None) -> dict[str, Any]:
-    """A study's settings (a dataclass) for its result file, ``car_config`` written out whole.
-
-    The car is recorded as its effective configuration (:meth:`CarConfig.to_json`: every value,
-    the file and its hash; None when the study was given none).
-    """
-    out = asdict(settings)
-    out["car_config"] = None if car is None else car.to_json()
-    return out
 
 
 def json_object(out: dict[str, Any]) -> dict[str, Any]:

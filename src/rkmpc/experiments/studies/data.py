@@ -1,4 +1,4 @@
-"""RKMPC and KMPC as the training data grow: :func:`study_data` (the paper's data-volume figure).
+"""RKMPC and KMPC as the training data grow: :class:`DataStudy` (the paper's data-volume figure).
 
 Sec. V of the paper: "RKMPC uses about 8000 data points while KMPC needs 50000
 or more". One parallel job per (controller, size, seed) collects data as its
@@ -8,28 +8,22 @@ on about ``size`` local-frame samples and drives one lap.
 
 from __future__ import annotations
 
-import time
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 from rkmpc.analysis.metrics import LapMetrics
 from rkmpc.analysis.statistics import Stats, stats
 from rkmpc.analysis.study_plots import VolumeSeries
 from rkmpc.analysis.tables import fmt, fmt_stats, markdown
-from rkmpc.core.errors import ParameterError
-from rkmpc.experiments.parallel import Job, JobOutcome, run_jobs
+from rkmpc.experiments.parallel import Job, JobOutcome
 from rkmpc.experiments.runs import run_controller
-from rkmpc.experiments.studies.common import (
-    check_parallel,
-    json_object,
-    settings_json,
-    study_versions,
-)
-from rkmpc.experiments.studies.data_job import DEFAULT_SIZES, DataStudyConfig, data_job
+from rkmpc.experiments.studies.common import json_object
+from rkmpc.experiments.studies.data_job import DEFAULT_SIZES, DataRun, DataStudyConfig, data_job
+from rkmpc.experiments.study import Say, StudyRun
 from rkmpc.sim.run import RunSpec
 
-__all__ = ["DEFAULT_SIZES", "DataStudyConfig", "DataStudyResult", "study_data"]
+__all__ = ["DEFAULT_SIZES", "DataJob", "DataStudy", "DataStudyConfig", "DataStudyResult"]
 
 
 @dataclass(frozen=True)
@@ -58,33 +52,60 @@ class SizeSummary:
     train_s: Stats
 
 
-def summarise_sizes(jobs: Sequence[dict[str, Any]]) -> list[SizeSummary]:
-    """Per (controller, size) summaries of data-study job records, by controller (first seen) and size."""
-    groups: dict[tuple[str, int], list[dict[str, Any]]] = {}
+@dataclass(frozen=True, kw_only=True)
+class DataJob:
+    """One (controller, size, seed) job: its outcome and, when it ran, what it made."""
+
+    controller: str
+    size: int
+    seed: int
+    ok: bool
+    error: str | None
+    traceback: str | None
+    seconds: float
+    run: DataRun | None
+
+    def to_json(self) -> dict[str, Any]:
+        run = {} if self.run is None else self.run.to_json()
+        return {
+            **run,
+            "controller": self.controller,
+            "size": self.size,
+            "seed": self.seed,
+            "ok": self.ok,
+            "error": self.error,
+            "traceback": self.traceback,
+            "seconds": self.seconds,
+        }
+
+
+def summarise_sizes(jobs: Sequence[DataJob]) -> list[SizeSummary]:
+    """Per (controller, size) summaries of data-study jobs, by controller (first seen) and size."""
+    groups: dict[tuple[str, int], list[DataJob]] = {}
     for job in jobs:
-        groups.setdefault((job["controller"], int(job["size"])), []).append(job)
-    order = list(dict.fromkeys(job["controller"] for job in jobs))
+        groups.setdefault((job.controller, job.size), []).append(job)
+    order = list(dict.fromkeys(job.controller for job in jobs))
     out = []
     for controller, size in sorted(groups, key=lambda k: (order.index(k[0]), k[1])):
         group = groups[(controller, size)]
-        ran = [j for j in group if j["ok"]]
-        done = [j for j in ran if j["metrics"]["completed"]]
+        ran = [j.run for j in group if j.run is not None]
+        done = [r for r in ran if r.metrics.completed]
         out.append(
             SizeSummary(
                 controller=controller,
                 size=size,
-                seeds=[j["seed"] for j in group],
+                seeds=[j.seed for j in group],
                 jobs=len(group),
                 failed_jobs=len(group) - len(ran),
                 completed=len(done),
                 completion_rate=len(done) / len(group),
-                lateral_error_mean_m=stats(j["metrics"]["lateral_error_mean_m"] for j in done),
-                lateral_error_max_m=stats(j["metrics"]["lateral_error_max_m"] for j in done),
-                heading_error_mean_rad=stats(j["metrics"]["heading_error_mean_rad"] for j in done),
-                progress=stats(j["metrics"]["progress"] for j in ran),
-                augmented_count=stats(j["augmented_count"] for j in ran),
-                raw_count=stats(j["raw_count"] for j in ran),
-                train_s=stats(j["train_s"] for j in ran),
+                lateral_error_mean_m=stats(r.metrics.lateral_error_mean_m for r in done),
+                lateral_error_max_m=stats(r.metrics.lateral_error_max_m for r in done),
+                heading_error_mean_rad=stats(r.metrics.heading_error_mean_rad for r in done),
+                progress=stats(r.metrics.progress for r in ran),
+                augmented_count=stats(r.augmented_count for r in ran),
+                raw_count=stats(r.raw_count for r in ran),
+                train_s=stats(r.train_s for r in ran),
             )
         )
     return out
@@ -92,30 +113,26 @@ def summarise_sizes(jobs: Sequence[dict[str, Any]]) -> list[SizeSummary]:
 
 @dataclass(frozen=True)
 class DataStudyResult:
-    """What :func:`study_data` found: the summary per (controller, size), the LMPC level, every job."""
+    """What :class:`DataStudy` found: the summary per (controller, size), the LMPC level, every job."""
 
     config: DataStudyConfig
-    parallel: dict[str, Any]
-    versions: dict[str, str]
-    wall_s: float
+    run: StudyRun
     baseline: LapMetrics
     summary: list[SizeSummary]
-    jobs: list[dict[str, Any]]
+    jobs: list[DataJob]
 
     def to_json(self) -> dict[str, Any]:
         out = {
             "study": "data",
-            "config": settings_json(self.config, self.config.car_config),
+            "config": self.config.to_json(),
             "track": self.config.track,
             "sizes": list(self.config.sizes),
             "seeds": list(self.config.seeds),
             "controllers": list(self.config.controllers),
-            "parallel": self.parallel,
-            "versions": self.versions,
-            "wall_s": self.wall_s,
+            **self.run.to_json(),
             "baseline": {"controller": "lmpc", "metrics": self.baseline.to_json()},
             "summary": self.summary,
-            "jobs": self.jobs,
+            "jobs": [job.to_json() for job in self.jobs],
         }
         return json_object(out)
 
@@ -167,68 +184,76 @@ class DataStudyResult:
                 ]
             )
         text = intro + "\n\n" + markdown(head, rows)
-        failed_jobs = [j for j in self.jobs if not j["ok"]]
+        failed_jobs = [j for j in self.jobs if not j.ok]
         if failed_jobs:
             lines = ["", "Failed jobs:", ""]
             for j in failed_jobs:
-                msg = str(j["error"]).splitlines()[0][:120] if j["error"] else ""
-                lines.append(f"- {j['controller']} {j['size']} seed {j['seed']}: {msg}")
+                msg = str(j.error).splitlines()[0][:120] if j.error else ""
+                lines.append(f"- {j.controller} {j.size} seed {j.seed}: {msg}")
             text += "\n".join(lines) + "\n"
         return text
 
+    def figure(self) -> Any:
+        """Lateral error and completion against the training samples, per controller."""
+        from rkmpc.analysis.study_plots import plot_data_study
 
-def study_data(
-    config: DataStudyConfig | None = None,
-    *,
-    n_jobs: int = 1,
-    backend: str = "loky",
-    address: str | None = None,
-    progress: Callable[[JobOutcome, int, int], None] | None = None,
-) -> DataStudyResult:
-    """RKMPC and KMPC as the number of training samples grows.
+        title = f"training data volume, {self.config.track}"
+        return plot_data_study(self.series(), self.baseline.lateral_error_mean_m, title)
+
+
+@dataclass(frozen=True)
+class DataStudy:
+    """RKMPC and KMPC as the number of training samples grows (``rkmpc study data``).
 
     One job per (controller, size, seed): ``L`` LMPC laps of the track (the fewest, at least
     ``min_laps``, whose window origins reach ``round(size / n_points) / rkmpc_max_ratio``) for
     track recipes, random excitation sized the same way with ``kmpc_max_ratio`` for excitation
     recipes. The conversion ratio is then set so that the augmentation draws
     ``round(size / n_points)`` windows: ``augmented_count`` is within ``n_points / 2`` of ``size``
-    (``target_met`` records it). The model is the recipe's default (100 epochs, or ``epochs``) and
+    (``target_met`` records it). The model is the recipe's default (100 epochs, or the car's) and
     the controller drives one lap.
-
-    Parameters
-    ----------
-    config : DataStudyConfig, optional
-        Track, sizes, seeds, controllers, augmentation and training settings.
-    n_jobs, backend, address
-        Where the jobs run: :func:`rkmpc.experiments.parallel.run_jobs`.
-    progress : callable, optional
-        ``progress(outcome, done, total)`` as each job finishes
-        (``outcome.name`` is ``"<controller> <size> seed <seed>"``).
     """
-    cfg = config if config is not None else DataStudyConfig()
-    if not isinstance(cfg, DataStudyConfig):
-        raise ParameterError("study_data: config must be a DataStudyConfig")
-    check_parallel(n_jobs, backend)
-    keys = [(c, size, seed) for c in cfg.controllers for size in cfg.sizes for seed in cfg.seeds]
-    jobs = [Job(f"{c} {size} seed {seed}", data_job, (cfg, c, size, seed)) for c, size, seed in keys]
-    t0 = time.perf_counter()
-    outcomes = run_jobs(
-        jobs, n_jobs=n_jobs, backend=backend, address=address, on_error="record", progress=progress
-    )
-    wall = time.perf_counter() - t0
-    scenario = cfg.scenario()
-    _, baseline = run_controller(scenario, RunSpec("lmpc"))
-    records = []
-    for (c, size, seed), out in zip(keys, outcomes, strict=True):
-        rec = {"controller": c, "size": size, "seed": seed, "metrics": {}, **(out.value if out.ok else {})}
-        rec.update({"ok": out.ok, "error": out.error, "traceback": out.traceback, "seconds": out.seconds})
-        records.append(rec)
-    return DataStudyResult(
-        config=cfg,
-        parallel={"n_jobs": n_jobs, "backend": backend, "address": address},
-        versions=study_versions(),
-        wall_s=wall,
-        baseline=baseline,
-        summary=summarise_sizes(records),
-        jobs=records,
-    )
+
+    config: DataStudyConfig
+    name: ClassVar[str] = "data"
+
+    def keys(self) -> list[tuple[str, int, int]]:
+        cfg = self.config
+        return [(c, size, seed) for c in cfg.controllers for size in cfg.sizes for seed in cfg.seeds]
+
+    def prepare(self, say: Say) -> None:
+        """Nothing shared: every job makes its own data."""
+
+    def jobs(self) -> list[Job]:
+        return [
+            Job(f"{c} {size} seed {seed}", data_job, (self.config, c, size, seed))
+            for c, size, seed in self.keys()
+        ]
+
+    def journal_settings(self) -> dict[str, Any]:
+        return self.config.to_json()
+
+    def encode(self, value: DataRun) -> dict[str, Any]:
+        return value.to_json()
+
+    def decode(self, data: Any) -> DataRun:
+        return DataRun.from_json(data)
+
+    def result(self, outcomes: list[JobOutcome], run: StudyRun) -> DataStudyResult:
+        jobs = [
+            DataJob(
+                controller=c,
+                size=size,
+                seed=seed,
+                ok=out.ok,
+                error=out.error,
+                traceback=out.traceback,
+                seconds=out.seconds,
+                run=out.value if out.ok else None,
+            )
+            for (c, size, seed), out in zip(self.keys(), outcomes, strict=True)
+        ]
+        _, baseline = run_controller(self.config.scenario(), RunSpec("lmpc"))
+        return DataStudyResult(
+            config=self.config, run=run, baseline=baseline, summary=summarise_sizes(jobs), jobs=jobs
+        )

@@ -4,30 +4,33 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Sequence
-from dataclasses import asdict, dataclass, replace
+from collections.abc import Mapping, Sequence
+from dataclasses import asdict, dataclass, field, fields, replace
 from typing import Any
 
+from rkmpc.analysis.metrics import LapMetrics
+from rkmpc.config.car import CarConfig
+from rkmpc.config.loader import load_preset
 from rkmpc.core.errors import ParameterError
 from rkmpc.core.validation import is_integer, is_positive_number
 from rkmpc.experiments.runs import run_controller
 from rkmpc.experiments.studies.common import (
-    check_car_config,
-    check_scale_vehicle,
+    check_car,
+    check_scale,
     check_track,
     int_tuple,
+    json_object,
     str_tuple,
 )
 from rkmpc.learning.data.augmentation import AugmentConfig, valid_origins
 from rkmpc.learning.data.dataset import TransitionDataset
-from rkmpc.learning.pipeline import TrainConfig, train_model
-from rkmpc.learning.recipes import recipe_for
-from rkmpc.sim.carfile import CarConfig
+from rkmpc.learning.learn import learn
+from rkmpc.learning.recipes import DataSource, KoopmanLearner, recipe_for
 from rkmpc.sim.collect import collect, collect_excitation
 from rkmpc.sim.run import RunSpec
-from rkmpc.sim.scenario import Scenario, load_scenario
+from rkmpc.sim.scenario import Scenario
 
-__all__ = ["DATA_CONTROLLERS", "DEFAULT_SIZES", "DataStudyConfig", "data_job"]
+__all__ = ["DATA_CONTROLLERS", "DEFAULT_SIZES", "DataRun", "DataStudyConfig", "data_job"]
 
 
 #: Training-sample targets of the data study (augmented transitions, the paper's M = N x N_p).
@@ -37,18 +40,18 @@ DEFAULT_SIZES = (1000, 2000, 4000, 8000, 16000, 32000, 50000)
 DATA_CONTROLLERS = ("rkmpc", "kmpc")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class DataStudyConfig:
-    """Settings of :func:`study_data`.
+    """Settings of the data study.
 
     Parameters
     ----------
     track : str
         Built-in track name or centre-line CSV path the laps are driven on.
+    car : CarConfig
+        The car (its training epochs are the study's; it sizes its own data and takes ``seeds``).
     scale : float or None
-        Track scale (default: the vehicle's).
-    vehicle : str
-        Vehicle preset.
+        Track scale (default: the car's).
     sizes : sequence of int
         Targets for the number of training samples: local-frame transitions after augmentation
         (``TrainReport.augmented_count``, the paper's ``M = N x N_p``). Each is met to within
@@ -66,18 +69,11 @@ class DataStudyConfig:
         Same for random-excitation samples (0.05 as in the main results).
     min_laps, max_laps : int
         Range of the LMPC laps collected.
-    epochs : int or None
-        Training epochs (None: the recipes' default, 100).
-    car_config : CarConfig or None
-        The car as a car file set it up (:mod:`rkmpc.sim.carfile`), a car of the ``vehicle``
-        preset: its parameters, plant, limits and controllers' settings replace the preset's. The
-        study sizes its own data and takes ``seeds`` and ``epochs`` above: the copy kept here takes
-        ``epochs``, and the result records it.
     """
 
     track: str = "builtin"
+    car: CarConfig = field(default_factory=lambda: load_preset("f1tenth"))
     scale: float | None = None
-    vehicle: str = "f1tenth"
     sizes: Sequence[int] = DEFAULT_SIZES
     seeds: Sequence[int] = (0, 1, 2)
     controllers: Sequence[str] = DATA_CONTROLLERS
@@ -86,14 +82,12 @@ class DataStudyConfig:
     kmpc_max_ratio: float = 0.05
     min_laps: int = 1
     max_laps: int = 40
-    epochs: int | None = None
-    car_config: CarConfig | None = None
 
     def __post_init__(self) -> None:
         check_track(str(self.track))
         object.__setattr__(self, "track", str(self.track))
-        check_scale_vehicle(self.scale, self.vehicle)
-        car = check_car_config("DataStudyConfig.car_config", self.car_config, self.vehicle)
+        check_scale("DataStudyConfig.scale", self.scale)
+        check_car("DataStudyConfig.car", self.car)
         object.__setattr__(self, "sizes", int_tuple("DataStudyConfig.sizes", self.sizes, minimum=1))
         object.__setattr__(self, "seeds", int_tuple("DataStudyConfig.seeds", self.seeds, minimum=0))
         controllers = str_tuple("DataStudyConfig.controllers", self.controllers)
@@ -113,25 +107,57 @@ class DataStudyConfig:
                 "DataStudyConfig: need integers 1 <= min_laps <= max_laps, "
                 f"got {self.min_laps!r}, {self.max_laps!r}"
             )
-        if self.epochs is not None and not (is_integer(self.epochs) and self.epochs >= 1):
-            raise ParameterError(
-                f"DataStudyConfig.epochs must be None or an integer >= 1, got {self.epochs!r}"
-            )
         for size in self.sizes:
             if size < self.n_points:
                 raise ParameterError(
                     f"DataStudyConfig.sizes: {size} is below one window of n_points = {self.n_points}"
                 )
-        if car is not None:  # the copy kept is the one that runs: these epochs
-            training = replace(car.training, epochs=self.epochs)
-            object.__setattr__(self, "car_config", replace(car, training=training))
 
     def scenario(self) -> Scenario:
-        """The track and the car: the ``vehicle`` preset, or ``car_config``'s."""
-        car = self.car_config
-        if car is None:
-            return load_scenario(self.track, scale=self.scale, vehicle=self.vehicle)
-        return car.scenario(self.track, scale=self.scale)
+        """The track and the car."""
+        return Scenario.from_car(self.car, self.track, scale=self.scale)
+
+    def to_json(self) -> dict[str, Any]:
+        """The settings, the car written out whole."""
+        out = {f.name: getattr(self, f.name) for f in fields(self) if f.name != "car"}
+        return {**json_object(out), "car": self.car.to_json()}
+
+
+@dataclass(frozen=True, kw_only=True)
+class DataRun:
+    """What one (controller, size, seed) job of the data study made and drove.
+
+    ``source`` says where the data came from (``{"kind": "lmpc_laps", "laps", "outcome",
+    "completed"}`` or ``{"kind": "excitation", "n_samples"}``); the counts are the training's
+    (:class:`~rkmpc.learning.pipeline.TrainReport`); times are wall seconds, for reports only.
+    """
+
+    controller: str
+    size: int
+    seed: int
+    source: dict[str, Any]
+    raw_count: int
+    augmented_count: int
+    valid_origins: int
+    windows: int
+    ratio: float
+    target_met: bool
+    model_options: dict[str, Any]
+    train_report: dict[str, Any]
+    data_s: float
+    train_s: float
+    fit_s: float
+    lap_s: float
+    metrics: LapMetrics
+
+    def to_json(self) -> dict[str, Any]:
+        out = {f.name: getattr(self, f.name) for f in fields(self) if f.name != "metrics"}
+        return {**json_object(out), "metrics": self.metrics.to_json()}
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> DataRun:
+        values = {f.name: data[f.name] for f in fields(cls) if f.name != "metrics"}
+        return cls(**values, metrics=LapMetrics.from_json(data["metrics"]))
 
 
 def _lmpc_data(
@@ -165,19 +191,19 @@ def _excitation_data(
     return data, n, k
 
 
-def data_job(cfg: DataStudyConfig, controller: str, size: int, seed: int) -> dict[str, Any]:
-    """Worker side of :func:`study_data`: data, training and one lap for one (controller, size, seed)."""
+def data_job(cfg: DataStudyConfig, controller: str, size: int, seed: int) -> DataRun:
+    """Worker of the data study: data, training and one lap for one (controller, size, seed)."""
     recipe = recipe_for(controller)
-    if recipe is None or recipe.learner != "koopman":
+    if recipe is None or not isinstance(recipe.learner, KoopmanLearner):
         raise ParameterError(f"the data study trains Koopman recipes only, not {controller!r}")
     t0 = time.perf_counter()
     scenario = cfg.scenario()
     windows = max(1, round(size / cfg.n_points))
-    record: dict[str, Any] = {"controller": controller, "size": size, "seed": seed}
-    if recipe.data == "track":
+    source: dict[str, Any]
+    if recipe.data is DataSource.TRACK:
         data, laps, origins = _lmpc_data(scenario, windows, cfg, seed)
         meta = data.metadata
-        record["source"] = {
+        source = {
             "kind": "lmpc_laps",
             "laps": laps,
             "outcome": meta["outcome"],
@@ -185,38 +211,43 @@ def data_job(cfg: DataStudyConfig, controller: str, size: int, seed: int) -> dic
         }
     else:
         data, n_samples, origins = _excitation_data(scenario, windows, cfg, seed)
-        record["source"] = {"kind": "excitation", "n_samples": n_samples}
+        source = {"kind": "excitation", "n_samples": n_samples}
     t_data = time.perf_counter() - t0
     ratio = min(1.0, windows / origins) if origins else 1.0
-    model = recipe.default_model(seed, cfg.epochs)
+    model = recipe.learner.default_model(seed, cfg.car.training.epochs)
     augment = AugmentConfig(ratio=ratio, n_points=cfg.n_points, seed=seed)
     t1 = time.perf_counter()
-    fitted, report = train_model(
+    learned = learn(
+        recipe,
         data,
-        scenario.vehicle.wheelbase,
-        TrainConfig(recipe.kind, augment, model),
-        vehicle=scenario.vehicle_name,
+        made_for=replace(scenario.provenance(), scale=None),
+        vehicle=scenario.vehicle,
+        seed=seed,
+        model=model,
+        augment=augment,
     )
+    report = learned.report
+    if report is None:  # pragma: no cover - a Koopman learner reports its training
+        raise ParameterError(f"no training report for {controller!r}")
     t_train = time.perf_counter() - t1
     t2 = time.perf_counter()
-    _, metrics = run_controller(
-        scenario, RunSpec(controller, seed=seed), controller_options={"model": fitted}
+    _, metrics = run_controller(scenario, RunSpec(controller, seed=seed), model=learned.model)
+    return DataRun(
+        controller=controller,
+        size=size,
+        seed=seed,
+        source=source,
+        raw_count=report.raw_count,
+        augmented_count=report.augmented_count,
+        valid_origins=origins,
+        windows=report.train_windows + report.holdout_windows,
+        ratio=ratio,
+        target_met=abs(report.augmented_count - size) <= cfg.n_points / 2 + 1e-9,
+        model_options=model.get_params(),
+        train_report=asdict(report),
+        data_s=t_data,
+        train_s=t_train,
+        fit_s=report.fit_time_s,
+        lap_s=time.perf_counter() - t2,
+        metrics=metrics,
     )
-    record.update(
-        {
-            "raw_count": report.raw_count,
-            "augmented_count": report.augmented_count,
-            "valid_origins": origins,
-            "windows": report.train_windows + report.holdout_windows,
-            "ratio": ratio,
-            "target_met": abs(report.augmented_count - size) <= cfg.n_points / 2 + 1e-9,
-            "model_options": model.get_params(),
-            "train_report": asdict(report),
-            "data_s": t_data,
-            "train_s": t_train,
-            "fit_s": report.fit_time_s,
-            "lap_s": time.perf_counter() - t2,
-            "metrics": metrics.to_json(),
-        }
-    )
-    return record

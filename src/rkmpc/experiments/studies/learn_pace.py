@@ -1,4 +1,4 @@
-"""Learning to race: :func:`learn_pace` (issue 14, item 4).
+"""Learning to race: :class:`LearnPaceStudy` (issue 14, item 4).
 
 Iteration 0: the LMPC drives ``laps`` laps at the ladder's first pace (a safe pace: the preset's);
 they start the pool of data. Iteration ``i >= 1``: the learned controller (``rkmpc``) is trained
@@ -10,143 +10,114 @@ faster. The loop stops at the first unclean laps, at the top of the ladder or af
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass, replace
-from typing import Any
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field, fields
+from typing import Any, ClassVar
 
 from rkmpc.analysis.metrics import LapMetrics, lap_metrics
 from rkmpc.analysis.tables import fmt, markdown
+from rkmpc.config.car import CarConfig
+from rkmpc.config.loader import load_preset
 from rkmpc.core.errors import ParameterError
 from rkmpc.core.validation import is_integer
-from rkmpc.experiments.cache import ModelCache
-from rkmpc.experiments.studies.common import (
-    check_car_config,
-    check_scale_vehicle,
-    check_track,
-    json_object,
-    settings_json,
-    study_versions,
-    track_label,
-)
-from rkmpc.experiments.studies.pace_job import PaceStudyConfig, train_on
-from rkmpc.experiments.studies.pace_rules import (
-    Pace,
-    car_ladder,
-    check_ladder,
-    pace_label,
-    pace_ladder,
-    run_verdict,
-)
+from rkmpc.experiments.models import make_model
+from rkmpc.experiments.parallel import Job, JobOutcome
+from rkmpc.experiments.studies.common import check_car, check_scale, check_track, json_object, track_label
+from rkmpc.experiments.studies.pace_job import PaceStudyConfig
+from rkmpc.experiments.studies.pace_rules import Pace, car_ladder, check_ladder, pace_label, run_verdict
+from rkmpc.experiments.study import Say, StudyRun
 from rkmpc.learning.data.dataset import TransitionDataset
-from rkmpc.learning.recipes import recipe_for
-from rkmpc.sim.carfile import CarConfig
+from rkmpc.learning.recipes import DataSource, recipe_for
 from rkmpc.sim.collect import record
 from rkmpc.sim.run import RunSpec
 
-__all__ = ["LearnIteration", "LearnPaceConfig", "LearnPaceResult", "learn_pace"]
+__all__ = [
+    "LearnIteration",
+    "LearnPaceConfig",
+    "LearnPaceResult",
+    "LearnPaceRun",
+    "LearnPaceStudy",
+    "learn_pace_job",
+]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class LearnPaceConfig:
-    """Settings of :func:`learn_pace`.
+    """Settings of learning to race.
 
     Parameters
     ----------
     track : str
         Built-in name or centre-line CSV path.
+    car : CarConfig
+        The car; its training settings give the seed, the laps recorded at every iteration (all
+        must be clean to go on) and the epochs.
     controller : str
         The learned controller (a recipe learning from laps of the track: ``rkmpc``,
         ``rkmpc-paper``, ``lmpc-id``).
     paces : sequence of (float, float) or None
-        The ladder; its first pace is the safe one the LMPC starts at. None: the vehicle's default,
-        or with ``car_config`` the car's (from its own pace:
-        :func:`~rkmpc.experiments.studies.pace_rules.car_ladder`).
-    seed : int
-        Seed of the runs and the training.
+        The ladder; its first pace is the safe one the LMPC starts at. None: the car's (from its
+        own pace: :func:`~rkmpc.experiments.studies.pace_rules.car_ladder`).
     scale : float or None
-        Track scale (default: the vehicle's).
-    vehicle : str
-        Vehicle preset.
-    laps : int
-        Laps recorded at every iteration (all must be clean to go on).
-    epochs : int or None
-        Training epochs (None: the recipe's default).
+        Track scale (default: the car's).
     max_iterations : int or None
         Iterations after the LMPC's (None: up the whole ladder).
     cache_dir : str or None
         Model cache folder (default when None).
     use_cache : bool
         Read and write trained models in the cache.
-    car_config : CarConfig or None
-        The car as a car file set it up, a car of the ``vehicle`` preset (as for
-        :class:`~rkmpc.experiments.studies.pace_job.PaceStudyConfig`); the copy kept here takes
-        the seed, laps and epochs above, and the result records it.
     """
 
     track: str = "builtin"
+    car: CarConfig = field(default_factory=lambda: load_preset("f1tenth"))
     controller: str = "rkmpc"
     paces: Sequence[Pace] | None = None
-    seed: int = 0
     scale: float | None = None
-    vehicle: str = "f1tenth"
-    laps: int = 2
-    epochs: int | None = None
     max_iterations: int | None = None
     cache_dir: str | None = None
     use_cache: bool = True
-    car_config: CarConfig | None = None
 
     def __post_init__(self) -> None:
         check_track(str(self.track))
         object.__setattr__(self, "track", str(self.track))
         recipe = recipe_for(self.controller)
-        if recipe is None or recipe.data != "track":
+        if recipe is None or recipe.data is not DataSource.TRACK:
             raise ParameterError(
                 f"LearnPaceConfig.controller must learn from laps of the track (rkmpc, rkmpc-paper, "
                 f"lmpc-id), got {self.controller!r}"
             )
-        check_scale_vehicle(self.scale, self.vehicle)
-        car = check_car_config("LearnPaceConfig.car_config", self.car_config, self.vehicle)
-        if self.paces is not None:
-            paces = check_ladder("LearnPaceConfig.paces", self.paces)
-        else:
-            paces = pace_ladder(self.vehicle) if car is None else car_ladder(car)
+        check_scale("LearnPaceConfig.scale", self.scale)
+        car = check_car("LearnPaceConfig.car", self.car)
+        paces = (
+            check_ladder("LearnPaceConfig.paces", self.paces) if self.paces is not None else car_ladder(car)
+        )
         if len(paces) < 2:
             raise ParameterError("LearnPaceConfig.paces: need a safe pace and at least one faster")
         object.__setattr__(self, "paces", paces)
-        for name, minimum in (("seed", 0), ("laps", 1)):
-            if not is_integer(getattr(self, name), minimum):
-                raise ParameterError(
-                    f"LearnPaceConfig.{name} must be an integer >= {minimum}, got {getattr(self, name)!r}"
-                )
-        for name in ("epochs", "max_iterations"):
-            value = getattr(self, name)
-            if value is not None and not is_integer(value, 1):
-                raise ParameterError(f"LearnPaceConfig.{name} must be None or an integer >= 1, got {value!r}")
-        if car is not None:  # the copy kept is the one that runs: these training settings
-            training = replace(car.training, epochs=self.epochs, seed=self.seed, data_laps=self.laps)
-            object.__setattr__(self, "car_config", replace(car, training=training))
+        if self.max_iterations is not None and not is_integer(self.max_iterations, 1):
+            raise ParameterError(
+                f"LearnPaceConfig.max_iterations must be None or an integer >= 1, got {self.max_iterations!r}"
+            )
 
     def study(self) -> PaceStudyConfig:
         """The same settings as a pace-study configuration (scenarios, training)."""
-        car = self.car_config
         return PaceStudyConfig(
             tracks=(self.track,),
+            car=self.car,
             controllers=(self.controller,),
             paces=self.paces,
-            seed=self.seed,
             scale=self.scale,
-            vehicle=self.vehicle,
-            laps=self.laps,
-            epochs=self.epochs,
             cache_dir=self.cache_dir,
             use_cache=self.use_cache,
-            kmpc_samples=PaceStudyConfig.kmpc_samples if car is None else car.training.kmpc_samples,
-            car_config=car,
         )
 
+    def to_json(self) -> dict[str, Any]:
+        """The settings, the car written out whole."""
+        out = {f.name: getattr(self, f.name) for f in fields(self) if f.name != "car"}
+        return {**json_object(out), "car": self.car.to_json()}
 
-@dataclass(frozen=True)
+
+@dataclass(frozen=True, kw_only=True)
 class LearnIteration:
     """One iteration: who drove at which pace, the verdict, the laps, what the model learned from.
 
@@ -170,34 +141,84 @@ class LearnIteration:
     recorded_samples: int
     model: dict[str, Any] | None
 
+    def to_json(self) -> dict[str, Any]:
+        out = {f.name: getattr(self, f.name) for f in fields(self) if "metrics" not in f.name}
+        return {
+            **json_object(out),
+            "metrics": self.metrics.to_json(),
+            "lmpc_metrics": self.lmpc_metrics.to_json(),
+        }
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> LearnIteration:
+        values = {f.name: data[f.name] for f in fields(cls) if "metrics" not in f.name}
+        lateral, speed = values["pace"]
+        values["pace"] = (float(lateral), float(speed))
+        return cls(
+            **values,
+            metrics=LapMetrics.from_json(data["metrics"]),
+            lmpc_metrics=LapMetrics.from_json(data["lmpc_metrics"]),
+        )
+
+
+@dataclass(frozen=True, kw_only=True)
+class LearnPaceRun:
+    """One climb: the iterations and why it stopped."""
+
+    iterations: list[LearnIteration]
+    stopped: str
+
+    def to_json(self) -> dict[str, Any]:
+        return {"stopped": self.stopped, "iterations": [it.to_json() for it in self.iterations]}
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> LearnPaceRun:
+        iterations = [LearnIteration.from_json(it) for it in data["iterations"]]
+        return cls(iterations=iterations, stopped=str(data["stopped"]))
+
 
 @dataclass(frozen=True)
 class LearnPaceResult:
-    """What :func:`learn_pace` found: the iterations and why it stopped."""
+    """What learning to race found: the iterations and why it stopped (or the job's error)."""
 
     config: LearnPaceConfig
-    versions: dict[str, str]
+    run: StudyRun
     iterations: list[LearnIteration]
     stopped: str
 
     def to_json(self) -> dict[str, Any]:
         out = {
             "study": "learn-pace",
-            "config": settings_json(self.config, self.config.car_config),
+            "config": self.config.to_json(),
             "track": track_label(self.config.track),
-            "seed": self.config.seed,
-            "versions": self.versions,
+            "seed": self.config.car.training.seed,
+            **self.run.to_json(),
             "stopped": self.stopped,
-            "iterations": self.iterations,
+            "iterations": [it.to_json() for it in self.iterations],
         }
         return json_object(out)
+
+    def figure(self) -> Any:
+        """Lap time and lateral error of every iteration, against the LMPC's at the same pace."""
+        from rkmpc.analysis.study_plots import plot_learn_pace
+
+        its = self.iterations
+        cfg = self.config
+        return plot_learn_pace(
+            [pace_label(it.pace) for it in its],
+            [it.metrics.lap_time_s for it in its],
+            [it.clean for it in its],
+            [it.lmpc_metrics.lap_time_s if it.lmpc_clean else None for it in its],
+            [it.metrics.lateral_error_mean_m for it in its],
+            f"learning to race: {cfg.controller} on {track_label(cfg.track)}, seed {cfg.car.training.seed}",
+        )
 
     def to_markdown(self) -> str:
         cfg = self.config
         intro = (
-            f"Learning to race on {track_label(cfg.track)} (seed {cfg.seed}): {cfg.controller} trained on "
-            f"every clean lap recorded so far, one pace step faster each iteration; {cfg.laps} laps per "
-            f"iteration. Stopped: {self.stopped}.\n\n"
+            f"Learning to race on {track_label(cfg.track)} (seed {cfg.car.training.seed}): {cfg.controller} "
+            f"trained on every clean lap recorded so far, one pace step faster each iteration; "
+            f"{cfg.car.training.data_laps} laps per iteration. Stopped: {self.stopped}.\n\n"
         )
         head = [
             "iter",
@@ -231,62 +252,56 @@ class LearnPaceResult:
         return intro + markdown(head, rows)
 
 
-def learn_pace(config: LearnPaceConfig, *, say: Callable[[str], None] | None = None) -> LearnPaceResult:
+def learn_pace_job(config: LearnPaceConfig) -> LearnPaceRun:
     """Learn to drive faster from one's own clean laps (see the module)."""
-    if not isinstance(config, LearnPaceConfig):
-        raise ParameterError("learn_pace: config must be a LearnPaceConfig")
-    tell = say if say is not None else (lambda _msg: None)
     study = config.study()
     recipe = recipe_for(config.controller)
     if recipe is None:  # pragma: no cover - checked by the configuration
-        raise ParameterError(f"learn_pace: {config.controller!r} learns no model")
-    cache = ModelCache(config.cache_dir) if config.use_cache else None
+        raise ParameterError(f"learn-pace: {config.controller!r} learns no model")
+    cache = study.cache()
+    seed, laps = config.car.training.seed, config.car.training.data_laps
     ladder = study.ladder
     last = len(ladder) - 1 if config.max_iterations is None else min(len(ladder) - 1, config.max_iterations)
 
     def lmpc_lap(pace: Pace) -> tuple[bool, LapMetrics]:
-        result, _ = record(study.scenario(config.track, pace), RunSpec("lmpc", laps=1, seed=config.seed))
+        result, _ = record(study.scenario(config.track, pace), RunSpec("lmpc", laps=1, seed=seed))
         return run_verdict(result, 1) is None, lap_metrics(result, laps=1)
 
-    tell(f"iteration 0: LMPC laps at {pace_label(ladder[0])}")
-    spec = RunSpec("lmpc", laps=config.laps, seed=config.seed)
-    result, data = record(study.scenario(config.track, ladder[0]), spec)
-    reason = run_verdict(result, config.laps)
-    metrics = lap_metrics(result, laps=config.laps)
+    result, data = record(study.scenario(config.track, ladder[0]), RunSpec("lmpc", laps=laps, seed=seed))
+    reason = run_verdict(result, laps)
     lmpc_clean, lmpc_metrics = lmpc_lap(ladder[0])
     pool: list[tuple[str, Pace, TransitionDataset]] = [("lmpc", ladder[0], data)]
     iterations = [
         LearnIteration(
-            0,
-            "lmpc",
-            ladder[0],
-            reason is None,
-            reason,
-            result.outcome,
-            metrics,
-            lmpc_clean,
-            lmpc_metrics,
-            None,
-            0,
-            len(data),
-            None,
+            iteration=0,
+            controller="lmpc",
+            pace=ladder[0],
+            clean=reason is None,
+            reason=reason,
+            outcome=result.outcome,
+            metrics=lap_metrics(result, laps=laps),
+            lmpc_clean=lmpc_clean,
+            lmpc_metrics=lmpc_metrics,
+            trained_on=None,
+            pool_samples=0,
+            recorded_samples=len(data),
+            model=None,
         )
     ]
     if reason is not None:
         stopped = f"the LMPC's laps at the first pace {pace_label(ladder[0])} are not clean ({reason})"
-        return LearnPaceResult(config, study_versions(), iterations, stopped)
+        return LearnPaceRun(iterations=iterations, stopped=stopped)
     stopped = "top of the ladder" if last == len(ladder) - 1 else f"after {last} iterations (max_iterations)"
     for i in range(1, last + 1):
         pace = ladder[i]
         scenario = study.scenario(config.track, pace)
         joined = TransitionDataset.concatenate([d for _, _, d in pool]) if len(pool) > 1 else pool[0][2]
-        tell(f"iteration {i}: {config.controller} trained on {len(joined)} samples drives {pace_label(pace)}")
-        options, model = train_on(
-            joined, scenario, recipe, seed=config.seed, cache=cache, epochs=config.epochs
+        key = {"data_hash": joined.content_hash()}
+        model, model_record = make_model(
+            recipe, scenario, _given(joined), key, seed=seed, epochs=config.car.training.epochs, cache=cache
         )
-        spec = RunSpec(config.controller, laps=config.laps, seed=config.seed)
-        result, data = record(scenario, spec, controller_options=options)
-        reason = run_verdict(result, config.laps)
+        result, data = record(scenario, RunSpec(config.controller, laps=laps, seed=seed), model=model)
+        reason = run_verdict(result, laps)
         lmpc_clean, lmpc_metrics = lmpc_lap(pace)
         iterations.append(
             LearnIteration(
@@ -296,17 +311,53 @@ def learn_pace(config: LearnPaceConfig, *, say: Callable[[str], None] | None = N
                 clean=reason is None,
                 reason=reason,
                 outcome=result.outcome,
-                metrics=lap_metrics(result, laps=config.laps),
+                metrics=lap_metrics(result, laps=laps),
                 lmpc_clean=lmpc_clean,
                 lmpc_metrics=lmpc_metrics,
                 trained_on=[{"recorder": who, "pace": list(at), "samples": len(d)} for who, at, d in pool],
                 pool_samples=len(joined),
                 recorded_samples=len(data),
-                model=model,
+                model=model_record.to_json(),
             )
         )
         if reason is not None:
             stopped = f"laps at {pace_label(pace)} not clean ({reason})"
             break
         pool.append((config.controller, pace, data))
-    return LearnPaceResult(config, study_versions(), iterations, stopped)
+    return LearnPaceRun(iterations=iterations, stopped=stopped)
+
+
+def _given(data: TransitionDataset) -> Callable[[], TransitionDataset]:
+    return lambda: data
+
+
+@dataclass(frozen=True)
+class LearnPaceStudy:
+    """Learning to race on one track (``rkmpc learn-pace``): one job, the whole climb."""
+
+    config: LearnPaceConfig
+    name: ClassVar[str] = "learn-pace"
+
+    def prepare(self, say: Say) -> None:
+        """Nothing shared: the climb learns at every iteration."""
+
+    def jobs(self) -> list[Job]:
+        return [
+            Job(f"{track_label(self.config.track)} {self.config.controller}", learn_pace_job, (self.config,))
+        ]
+
+    def journal_settings(self) -> dict[str, Any]:
+        return self.config.to_json()
+
+    def encode(self, value: LearnPaceRun) -> dict[str, Any]:
+        return value.to_json()
+
+    def decode(self, data: Any) -> LearnPaceRun:
+        return LearnPaceRun.from_json(data)
+
+    def result(self, outcomes: list[JobOutcome], run: StudyRun) -> LearnPaceResult:
+        out = outcomes[0]
+        if not out.ok:
+            return LearnPaceResult(self.config, run, [], f"failed: {out.error}")
+        climb: LearnPaceRun = out.value
+        return LearnPaceResult(self.config, run, climb.iterations, climb.stopped)

@@ -1,4 +1,4 @@
-"""How fast can each controller go: :func:`study_pace` (issue 14, item 3).
+"""How fast can each controller go: :class:`PaceStudy` (issue 14, item 3).
 
 For each controller on each track, the pace (lateral-acceleration limit and top speed together,
 braking and traction scaled with them) is raised step by step up a ladder until the controller no
@@ -11,29 +11,19 @@ the dynamic NMPC on the same track.
 
 from __future__ import annotations
 
-import time
-from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 from rkmpc.analysis.statistics import stats
 from rkmpc.analysis.study_plots import PaceSeries
 from rkmpc.analysis.tables import fmt, fmt_stats, markdown
-from rkmpc.core.errors import ParameterError
-from rkmpc.experiments.journal import JobJournal
-from rkmpc.experiments.parallel import Job, JobOutcome, run_jobs
-from rkmpc.experiments.studies.common import (
-    check_parallel,
-    json_object,
-    settings_json,
-    study_versions,
-    track_key,
-    track_label,
-)
+from rkmpc.experiments.parallel import Job, JobOutcome
+from rkmpc.experiments.studies.common import json_object, track_key, track_label
 from rkmpc.experiments.studies.pace_job import PaceStep, PaceStudyConfig, job_name, pace_job
 from rkmpc.experiments.studies.pace_rules import MAX_FALLBACK_SHARE, pace_label
+from rkmpc.experiments.study import Say, StudyRun
 
-__all__ = ["PACE_BASELINES", "PaceRun", "PaceStudyResult", "pace_journal_settings", "study_pace"]
+__all__ = ["PACE_BASELINES", "PaceRun", "PaceStudy", "PaceStudyResult"]
 
 #: Controllers every other one's best lap time is compared with, where they are in the study.
 PACE_BASELINES = ("lmpc", "nmpc-dynamic")
@@ -87,15 +77,13 @@ def _lap(step: PaceStep | None) -> float | None:
 
 @dataclass(frozen=True)
 class PaceStudyResult:
-    """What :func:`study_pace` found: every (track, controller) climb."""
+    """What :class:`PaceStudy` found: every (track, controller) climb."""
 
     config: PaceStudyConfig
-    parallel: dict[str, Any]
-    versions: dict[str, str]
-    wall_s: float
+    run: StudyRun
     runs: list[PaceRun]
 
-    def run(self, track: str, controller: str) -> PaceRun | None:
+    def climb(self, track: str, controller: str) -> PaceRun | None:
         return next((r for r in self.runs if r.track == track and r.controller == controller), None)
 
     def tracks(self) -> list[str]:
@@ -103,7 +91,7 @@ class PaceStudyResult:
 
     def change_pct(self, run: PaceRun, baseline: str) -> float | None:
         """Best-lap-time change of ``run`` against ``baseline`` on the same track (%; negative: faster)."""
-        other = self.run(run.track, baseline)
+        other = self.climb(run.track, baseline)
         mine, theirs = _lap(run.best()), _lap(None if other is None else other.best())
         if mine is None or theirs is None or other is run:
             return None
@@ -137,13 +125,11 @@ class PaceStudyResult:
     def to_json(self) -> dict[str, Any]:
         out = {
             "study": "pace",
-            "config": settings_json(self.config, self.config.car_config),
+            "config": self.config.to_json(),
             "ladder": [list(p) for p in self.config.ladder],
             "max_fallback_share": MAX_FALLBACK_SHARE,
             "seed": self.config.seed,
-            "parallel": self.parallel,
-            "versions": self.versions,
-            "wall_s": self.wall_s,
+            **self.run.to_json(),
             "best": [self._best_row(r) for r in self.runs],
             "runs": [r.to_json() for r in self.runs],
         }
@@ -165,6 +151,13 @@ class PaceStudyResult:
 
     def to_markdown(self) -> str:
         return pace_markdown(self)
+
+    def figure(self) -> Any:
+        """Lap time and lateral error up the ladder, per controller and track."""
+        from rkmpc.analysis.study_plots import plot_pace_study
+
+        title = f"pace study, seed {self.config.seed}: clean laps up the pace ladder"
+        return plot_pace_study(self.series(), title)
 
 
 def pace_markdown(result: PaceStudyResult) -> str:
@@ -238,74 +231,51 @@ def _data_cell(step: PaceStep) -> str:
     return f"{d.recorder}{at} {d.samples}{lmpc}"
 
 
-def pace_journal_settings(config: PaceStudyConfig) -> dict[str, Any]:
-    """What a pace study's journal must match: its settings but the tracks, controllers and cache.
+@dataclass(frozen=True)
+class PaceStudy:
+    """Each controller up the pace ladder on every track (``rkmpc study pace``)."""
 
-    A journal of the same settings is reused by a run over more tracks or controllers; the job
-    key is the track (a file by its absolute path) and the controller.
-    """
-    settings = json_object(settings_json(config, config.car_config))  # as the result file records it
-    for name in ("tracks", "controllers", "cache_dir", "use_cache"):
-        settings.pop(name)
-    return {"study": "pace", "settings": settings, "versions": study_versions()}
+    config: PaceStudyConfig
+    name: ClassVar[str] = "pace"
 
+    def keys(self) -> list[tuple[str, str]]:
+        return [(t, c) for t in self.config.tracks for c in self.config.controllers]
 
-def study_pace(
-    config: PaceStudyConfig,
-    *,
-    n_jobs: int = 1,
-    backend: str = "loky",
-    address: str | None = None,
-    progress: Callable[[JobOutcome, int, int], None] | None = None,
-    journal: JobJournal | None = None,
-) -> PaceStudyResult:
-    """Climb the pace ladder with every controller on every track, in parallel.
+    def prepare(self, say: Say) -> None:
+        """Nothing shared: every climb learns at every pace."""
 
-    Parameters
-    ----------
-    config : PaceStudyConfig
-        Tracks, controllers, ladder and settings.
-    n_jobs, backend, address
-        Where the jobs run: :func:`rkmpc.experiments.parallel.run_jobs`.
-    progress : callable, optional
-        ``progress(outcome, done, total)`` as each job finishes (``outcome.name`` is
-        ``"<track> <controller>"``).
-    journal : JobJournal, optional
-        Finished (track, controller) climbs kept across runs (:mod:`rkmpc.experiments.journal`),
-        opened with :func:`pace_journal_settings`; only the others are run.
-    """
-    if not isinstance(config, PaceStudyConfig):
-        raise ParameterError("study_pace: config must be a PaceStudyConfig")
-    check_parallel(n_jobs, backend)
-    keys: Sequence[tuple[str, str]] = [(t, c) for t in config.tracks for c in config.controllers]
-    jobs = [Job(job_name(t, c), pace_job, (config, t, c), key=f"{track_key(t)} {c}") for t, c in keys]
-    t0 = time.perf_counter()
-    outcomes = run_jobs(
-        jobs,
-        n_jobs=n_jobs,
-        backend=backend,
-        address=address,
-        on_error="record",
-        progress=progress,
-        journal=journal,
-    )
-    wall = time.perf_counter() - t0
-    runs = [
-        PaceRun(
-            spec=t,
-            controller=c,
-            ok=out.ok,
-            error=out.error,
-            traceback=out.traceback,
-            seconds=out.seconds,
-            steps=list(out.value) if out.ok else [],
-        )
-        for (t, c), out in zip(keys, outcomes, strict=True)
-    ]
-    return PaceStudyResult(
-        config=config,
-        parallel={"n_jobs": n_jobs, "backend": backend, "address": address},
-        versions=study_versions(),
-        wall_s=wall,
-        runs=runs,
-    )
+    def jobs(self) -> list[Job]:
+        return [
+            Job(job_name(t, c), pace_job, (self.config, t, c), key=f"{track_key(t)} {c}")
+            for t, c in self.keys()
+        ]
+
+    def journal_settings(self) -> dict[str, Any]:
+        """Its settings but the tracks, controllers and cache: a journal of the same settings is reused
+        by a run over more tracks or controllers (the job key is the track, a file by its absolute
+        path, and the controller)."""
+        settings = self.config.to_json()
+        for name in ("tracks", "controllers", "cache_dir", "use_cache"):
+            settings.pop(name)
+        return settings
+
+    def encode(self, value: list[PaceStep]) -> list[dict[str, Any]]:
+        return [json_object(step.to_json()) for step in value]
+
+    def decode(self, data: Any) -> list[PaceStep]:
+        return [PaceStep.from_json(step) for step in data]
+
+    def result(self, outcomes: list[JobOutcome], run: StudyRun) -> PaceStudyResult:
+        runs = [
+            PaceRun(
+                spec=t,
+                controller=c,
+                ok=out.ok,
+                error=out.error,
+                traceback=out.traceback,
+                seconds=out.seconds,
+                steps=list(out.value) if out.ok else [],
+            )
+            for (t, c), out in zip(self.keys(), outcomes, strict=True)
+        ]
+        return PaceStudyResult(config=self.config, run=run, runs=runs)

@@ -17,15 +17,13 @@ from __future__ import annotations
 import itertools
 import math
 from collections.abc import Iterable, Mapping
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
+from rkmpc.config.car import CarConfig
+from rkmpc.config.loader import load_preset
 from rkmpc.core.errors import ParameterError
 from rkmpc.core.validation import is_integer
 from rkmpc.sim.closed_loop import SimResult
-from rkmpc.sim.scenario import vehicle_preset
-
-if TYPE_CHECKING:
-    from rkmpc.sim.carfile import CarConfig
 
 __all__ = [
     "DEFAULT_LADDERS",
@@ -86,7 +84,7 @@ def pace_ladder(
         raise ParameterError(f"pace_ladder: steps must be an integer >= 0, got {n!r}")
     if not (math.isfinite(da) and math.isfinite(dv) and da >= 0 and dv >= 0 and da + dv > 0):
         raise ParameterError(f"pace_ladder: step must be two non-negative numbers, not both 0, got {step!r}")
-    top = vehicle_preset(vehicle).params().drive.max_speed if top_speed is None else top_speed
+    top = load_preset(vehicle).vehicle.drive.max_speed if top_speed is None else top_speed
     if not (math.isfinite(top) and top > 0):
         raise ParameterError(f"pace_ladder: top_speed must be finite and > 0, got {top_speed!r}")
     out: list[Pace] = []
@@ -104,7 +102,7 @@ def car_ladder(
     step: Pace | None = None,
     steps: int | None = None,
 ) -> tuple[Pace, ...]:
-    """The ladder of a car set up by a car file (:class:`rkmpc.sim.carfile.CarConfig`).
+    """The ladder of a car (:class:`rkmpc.config.car.CarConfig`).
 
     As for the presets, the ladder starts at the car's own pace: its limits' ``lateral_accel`` and
     ``max_speed`` (a file's ``[limits]``, else the preset's) unless ``start`` is given, and it is

@@ -32,6 +32,7 @@ other plant (a wrapper included).
 from __future__ import annotations
 
 from rkmpc.core.errors import ParameterError
+from rkmpc.core.registry import Registry
 from rkmpc.sim.faults.base import Fault
 from rkmpc.sim.faults.physical import FrictionFault, HeavyFault, curviest_window
 from rkmpc.sim.faults.signals import DEFAULT_NOISE, DelayFault, NoiseFault
@@ -53,9 +54,9 @@ __all__ = [
 
 
 #: The named default faults.
-FAULTS: dict[str, Fault] = {
-    fault.name: fault for fault in (NoiseFault(), DelayFault(), FrictionFault(), HeavyFault())
-}
+FAULTS: Registry[Fault] = Registry(
+    "fault", {fault.name: fault for fault in (NoiseFault(), DelayFault(), FrictionFault(), HeavyFault())}
+)
 
 
 def get_fault(name: str) -> Fault:
@@ -63,14 +64,10 @@ def get_fault(name: str) -> Fault:
 
     Raises
     ------
-    ParameterError
+    UnknownNameError
         If ``name`` is not a key of :data:`FAULTS`; the message lists them.
     """
-    try:
-        return FAULTS[name]
-    except (KeyError, TypeError):
-        known = ", ".join(sorted(FAULTS))
-        raise ParameterError(f"unknown fault {name!r}; known faults: {known}") from None
+    return FAULTS[name]
 
 
 def apply_fault(plant: Plant, fault: Fault | str, scenario: Scenario, seed: int) -> Plant:
