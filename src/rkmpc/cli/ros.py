@@ -9,7 +9,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from rkmpc.cli.common import VEHICLES, at_least
+from rkmpc.cli.common import add_config_args, at_least, car_config
 from rkmpc.core.errors import RkmpcError
 
 __all__ = ["ROS_COMMANDS", "add_car_loop_parser", "add_ros_parsers"]
@@ -60,7 +60,7 @@ def add_ros_parsers(sub: Any) -> None:
     sim.add_argument(
         "--scale", type=float, default=None, help="scale of track files (default: 0.1 for f1tenth)"
     )
-    sim.add_argument("--vehicle", default="f1tenth", choices=VEHICLES)
+    add_config_args(sim, pace=False)
     sim.add_argument(
         "--car", default=None, help="drive a car of the zoo (gym, overshoot, ..., random-<seed>)"
     )
@@ -168,11 +168,10 @@ def cmd_sim_node(args: argparse.Namespace) -> int:
     from rkmpc.ros.sim_config import SimNodeConfig
 
     config = SimNodeConfig(
+        car=car_config(args),
         track=args.track,
         raceline=args.raceline,
         scale=args.scale,
-        vehicle=args.vehicle,
-        car=args.car,
         clock=args.clock,
         laps=args.laps,
         period=args.period,

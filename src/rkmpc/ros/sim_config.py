@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
+from rkmpc.config.car import CarConfig
+from rkmpc.config.loader import load_preset
 from rkmpc.core.errors import ParameterError
 from rkmpc.core.validation import is_integer
 
@@ -17,16 +19,16 @@ __all__ = ["CLOCKS", "SimNodeConfig"]
 CLOCKS = ("realtime", "lockstep")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class SimNodeConfig:
     """What the simulated car drives and how it talks (SI units).
 
     Parameters
     ----------
-    track, raceline, scale, vehicle, car : as :func:`rkmpc.sim.scenario.load_scenario`
-        The track (built-in name or TUM CSV), an optional race line, the file scale, the vehicle
-        preset and a car of the zoo (:func:`rkmpc.vehicle.zoo.get_car`) to drive instead of the
-        preset's plant.
+    car : CarConfig
+        The car (its plant, or the zoo car it drives: ``car.plant``), as every command reads it.
+    track, raceline, scale : as :meth:`rkmpc.sim.scenario.Scenario.from_car`
+        The track (built-in name or TUM CSV), an optional race line, the file scale.
     clock : str
         One of :data:`CLOCKS`.
     laps : int
@@ -55,11 +57,10 @@ class SimNodeConfig:
         How long (s) to wait for the first command; None waits until interrupted.
     """
 
+    car: CarConfig = field(default_factory=lambda: load_preset("f1tenth"))
     track: str = "builtin"
     raceline: str | None = None
     scale: float | None = None
-    vehicle: str = "f1tenth"
-    car: str | None = None
     clock: str = "realtime"
     laps: int = 1
     period: float = 0.05

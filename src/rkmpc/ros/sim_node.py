@@ -37,7 +37,7 @@ from rkmpc.ros.remote import RemoteController
 from rkmpc.ros.sim_config import SimNodeConfig
 from rkmpc.ros.sim_plant import PhysicsPlant
 from rkmpc.sim.closed_loop import SimConfig, SimResult, simulate
-from rkmpc.sim.scenario import load_scenario
+from rkmpc.sim.scenario import Scenario
 
 __all__ = ["run_sim_node", "summary_of"]
 
@@ -58,9 +58,7 @@ def run_sim_node(config: SimNodeConfig, *, out: Path | None = None, ros_args: li
     executor = SingleThreadedExecutor()
     executor.add_node(node)
     try:
-        scenario = load_scenario(
-            config.track, raceline=config.raceline, scale=config.scale, vehicle=config.vehicle, car=config.car
-        )
+        scenario = Scenario.from_car(config.car, config.track, raceline=config.raceline, scale=config.scale)
         status_qos = QoSProfile(
             depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
         )
@@ -124,7 +122,7 @@ def summary_of(result: SimResult, config: SimNodeConfig, remote: RemoteControlle
         "metrics": metrics,
         "clock": config.clock,
         "actuation_delay": config.actuation_delay,
-        "car": config.car,
+        "car": config.car.plant.car,
         "commands_received": remote.received,
         "commands_ignored": remote.ignored,
         "odometry_published": remote.published,

@@ -382,6 +382,7 @@ def _drive(
     )
     bound = config.timeout
     sim_config = SimNodeConfig(
+        car=car,
         track=config.track,
         clock=config.clock,
         laps=laps,

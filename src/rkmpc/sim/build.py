@@ -62,6 +62,5 @@ def build_controller(
     """
     if model is not None:
         check_model(model, scenario, source=f"the {name} model", allow_mismatch=allow_mismatch)
-    return make_controller(
-        name, scenario.reference, scenario.vehicle, settings=scenario.settings, model=model
-    )
+    settings = scenario.car.controllers.with_period(scenario.dt)
+    return make_controller(name, scenario.reference, scenario.vehicle, settings=settings, model=model)

@@ -12,8 +12,8 @@ from rkmpc.control.base import STATUS_CODES, Controller
 from rkmpc.core.angles import wrap_scalar
 from rkmpc.core.errors import ParameterError, PlantIntegrationError
 from rkmpc.core.observation import OBSERVATION_FIELDS, Command, Observation
+from rkmpc.sim.laps import LapCounter
 from rkmpc.sim.log import StepLog
-from rkmpc.track.path import Path, Projection
 from rkmpc.track.reference import Reference
 from rkmpc.track.track import Track
 from rkmpc.vehicle.plants.base import Plant
@@ -183,7 +183,7 @@ def simulate(
     log = StepLog(log_columns(plant.STATE_NAMES), capacity=min(max_steps, 20000))
     names = plant.STATE_NAMES
     pose_index = (names.index("x"), names.index("y"), names.index("yaw"))
-    laps = _LapCounter(reference.path, s0, cfg.dt)
+    laps = LapCounter(reference.path, s0)
     s_track: float | None = None
     outcome = "timeout"
     failure: str | None = None
@@ -196,16 +196,16 @@ def simulate(
             break
         # Errors of the true pose against the reference path; progress unwrapped across the line.
         true_x, true_y, true_yaw = (float(state[i]) for i in pose_index)
-        proj = laps.update(true_x, true_y, t, first=len(log) == 0)
+        proj, _ = laps.update(true_x, true_y, t, cfg.dt, first=len(log) == 0)
         s_track, _, margin = track.boundary_offsets(true_x, true_y, s_track)
-        if laps.progress >= cfg.laps * length:
+        if laps.distance >= cfg.laps * length:
             outcome = "completed"
             break
         on_track = margin >= 0.0
         command = controller.step(obs) if on_track else None
         errors = (proj.lateral, wrap_scalar(true_yaw - float(proj.heading)), margin)
         log.append(
-            _log_row(t, proj.s, laps.progress, obs, state, plant, controller, command, reference, errors)
+            _log_row(t, proj.s, laps.distance, obs, state, plant, controller, command, reference, errors)
         )
         if command is None:
             outcome = "off_track"
@@ -216,7 +216,7 @@ def simulate(
             outcome, failure = "plant_failure", str(exc)
             break
         if on_step is not None:
-            on_step(t, laps.progress / length)
+            on_step(t, laps.distance / length)
     lap_times = list(np.diff([0.0, *laps.crossings]).astype(float)) if laps.crossings else []
     log.metadata["outcome"] = outcome
     log.metadata["lap_times"] = lap_times
@@ -227,7 +227,7 @@ def simulate(
     return SimResult(
         log=log,
         outcome=outcome,
-        progress=laps.progress / length,
+        progress=laps.distance / length,
         lap_length=length,
         lap_times=lap_times,
         fallback_count=controller.fallback_count,
@@ -250,32 +250,6 @@ def _start(plant: Plant, reference: Reference, cfg: SimConfig) -> float:
         speed0, steer0 = 0.0, 0.0
     plant.reset(float(start[0]), float(start[1]), yaw0, speed0, steer0)
     return s0
-
-
-class _LapCounter:
-    """Distance driven along the reference path (m), unwrapped across the start line, and lap crossings."""
-
-    def __init__(self, path: Path, s0: float, dt: float) -> None:
-        self.path = path
-        self.length = path.length
-        self.dt = dt
-        self.s_prev = s0
-        self.progress = 0.0
-        #: Times (s) at which the car crossed the start line, one per lap completed.
-        self.crossings: list[float] = []
-
-    def update(self, x: float, y: float, t: float, *, first: bool) -> Projection:
-        """Project the car at time ``t`` (s), advance the progress; returns the projection."""
-        length = self.length
-        proj = self.path.project(x, y, self.s_prev)
-        ds = (proj.s - self.s_prev + 0.5 * length) % length - 0.5 * length
-        lap_goal = (len(self.crossings) + 1) * length
-        if self.progress + ds >= lap_goal and not first:
-            # Interpolate the line-crossing time between the previous and this step.
-            self.crossings.append(t - self.dt + self.dt * (lap_goal - self.progress) / max(ds, 1e-12))
-        self.progress += ds
-        self.s_prev = proj.s
-        return proj
 
 
 def _log_row(

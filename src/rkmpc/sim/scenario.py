@@ -14,7 +14,6 @@ from pathlib import Path
 
 from rkmpc.config.car import CarConfig
 from rkmpc.config.loader import load_preset
-from rkmpc.control.settings import ControllerSettings
 from rkmpc.learning.contract import Provenance
 from rkmpc.track.builtin import builtin_track, list_builtin_tracks
 from rkmpc.track.loaders import load_raceline, load_track
@@ -124,11 +123,6 @@ class Scenario:
     def zoo_car(self) -> CarSpec | None:
         """The zoo car driven instead of the preset's plant, or None."""
         return None if self.car.plant.car is None else get_car(self.car.plant.car)
-
-    @property
-    def settings(self) -> ControllerSettings:
-        """The car's controller settings, planning with this scenario's period."""
-        return self.car.controllers.with_period(self.dt)
 
     def make_plant(self, seed: int = 0) -> Plant:
         """A fresh plant of the car this scenario drives (``seed``: its odometry noise, if any)."""
