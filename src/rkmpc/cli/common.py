@@ -107,6 +107,13 @@ def add_config_args(parser: argparse.ArgumentParser, *, pace: bool = True) -> No
         choices=VEHICLES,
         help="vehicle preset; else the --config file's (default: f1tenth)",
     )
+    parser.add_argument(
+        "--sensors",
+        default=None,
+        metavar="PROFILE",
+        help="what the simulated car measures: ideal, no-steer, f1tenth-real (a real F1TENTH car: no "
+        "wheel angle, a late noisy localiser); else the --config file's [sensors] (default: ideal)",
+    )
     if pace:
         parser.add_argument(
             "--lateral-accel",
@@ -145,6 +152,7 @@ def car_config(args: argparse.Namespace) -> CarConfig:
     car = getattr(args, "car", None)
     if car is not None:
         config = config.with_zoo_car(car)
+    config = config.with_sensors(getattr(args, "sensors", None))
     return config.at_pace(getattr(args, "lateral_accel", None), getattr(args, "max_speed", None))
 
 

@@ -23,6 +23,7 @@ from rkmpc.core.validation import is_integer, is_positive_number
 from rkmpc.track.speed_profile import SpeedLimits
 from rkmpc.vehicle.params import VehicleParams
 from rkmpc.vehicle.registry import PLANTS
+from rkmpc.vehicle.sensors import SensorProfile, get_sensor_profile
 from rkmpc.vehicle.zoo import get_car
 
 __all__ = ["CarConfig", "PlantSettings", "TrainingSettings"]
@@ -103,6 +104,10 @@ class CarConfig:
         Every controller's settings.
     training : TrainingSettings
         How the learned controllers learn.
+    sensors : SensorProfile
+        What the simulated car's sensors measure, and how (:mod:`rkmpc.vehicle.sensors`):
+        ``ideal`` (every field true and current) or a real car's profile (``f1tenth-real``: no
+        wheel angle, no side-slip, a late, noisy localiser).
     ros : RosSettings
         How ``rkmpc node`` talks to the car.
     source : str or None
@@ -118,6 +123,7 @@ class CarConfig:
     limits: SpeedLimits = field(default_factory=SpeedLimits)
     controllers: ControllerSettings = field(default_factory=ControllerSettings)
     training: TrainingSettings = field(default_factory=TrainingSettings)
+    sensors: SensorProfile = field(default_factory=lambda: get_sensor_profile("ideal"))
     ros: RosSettings = field(default_factory=RosSettings)
     source: str | None = None
     sha256: str | None = None
@@ -129,6 +135,7 @@ class CarConfig:
             ("limits", SpeedLimits),
             ("controllers", ControllerSettings),
             ("training", TrainingSettings),
+            ("sensors", SensorProfile),
             ("ros", RosSettings),
         )
         for name, kind in checks:
@@ -150,6 +157,14 @@ class CarConfig:
         """This car driving the zoo car ``car`` (None: the preset's own plant)."""
         return self if car == self.plant.car else replace(self, plant=replace(self.plant, car=car))
 
+    def with_sensors(self, profile: str | SensorProfile | None) -> CarConfig:
+        """This car with another sensor profile (a name of :data:`rkmpc.vehicle.sensors.SENSOR_PROFILES`);
+        None keeps the car's."""
+        if profile is None:
+            return self
+        sensors = get_sensor_profile(profile) if isinstance(profile, str) else profile
+        return self if sensors == self.sensors else replace(self, sensors=sensors)
+
     def with_training(self, **changes: Any) -> CarConfig:
         """This car with some :class:`TrainingSettings` fields replaced (``seed=1``, ``epochs=5``)."""
         return replace(self, training=replace(self.training, **changes)) if changes else self
@@ -169,5 +184,6 @@ class CarConfig:
             "limits": asdict(self.limits),
             "controllers": self.controllers.to_json(),
             "training": asdict(self.training),
+            "sensors": self.sensors.describe(),
             "ros": to_json_ready(asdict(self.ros)),
         }

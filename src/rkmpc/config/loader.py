@@ -23,6 +23,11 @@ A user's car file names the preset it builds on and overrides what it gives::
     [training]
     epochs = 100
 
+    [sensors]                   # what the simulated car measures (rkmpc.vehicle.sensors)
+    profile = "f1tenth-real"    # "ideal" (default), "no-steer", "f1tenth-real"
+    [sensors.localiser]
+    latency = 0.05
+
     [ros]                       # RosSettings: rkmpc node
     rate_hz = 20.0
     [ros.topics]
@@ -56,10 +61,11 @@ from rkmpc.core.registry import Registry
 from rkmpc.core.settings import build_dataclass, check_keys, check_value
 from rkmpc.track.speed_profile import SpeedLimits
 from rkmpc.vehicle.params import PARAMS, VehicleParams
+from rkmpc.vehicle.sensors import SensorProfile, get_sensor_profile
 
 __all__ = ["MAX_FILE_BYTES", "PRESETS", "load_car_config", "load_preset", "read_settings_file"]
 
-SECTIONS = ("vehicle", "plant", "limits", "controllers", "training", "ros")
+SECTIONS = ("vehicle", "plant", "limits", "controllers", "training", "sensors", "ros")
 #: The packaged presets by name: their file in ``rkmpc/config/presets``.
 PRESETS: Registry[str] = Registry("car preset", {"f1tenth": "f1tenth.toml", "fullsize": "fullsize.toml"})
 #: The largest settings file read (bytes): a car file is a few kilobytes.
@@ -202,12 +208,31 @@ def _build(data: Mapping[str, Any], path: Path, *, base: CarConfig | None, name:
             training=build_dataclass(
                 TrainingSettings, sections["training"], path, "training.", base=defaults.training
             ),
+            sensors=_sensors(sections["sensors"], defaults.sensors, path),
             ros=build_dataclass(RosSettings, sections["ros"], path, "ros.", base=defaults.ros),
         )
     except ParameterError as exc:
         if isinstance(exc, InputFileError):
             raise
         raise InputFileError(path, str(exc)) from None
+
+
+def _sensors(section: Mapping[str, Any], base: SensorProfile, path: Path) -> SensorProfile:
+    """``[sensors]``: ``profile = NAME`` (else the base's), then overrides of its parts' fields."""
+    overrides = dict(section)
+    profile = base
+    if "profile" in overrides:
+        name = check_value(str, overrides.pop("profile"), path, "sensors.profile")
+        try:
+            profile = get_sensor_profile(name)
+        except ParameterError as exc:
+            raise InputFileError(path, str(exc), "sensors.profile") from None
+    try:
+        return profile.with_overrides(overrides)
+    except ParameterError as exc:
+        message = str(exc)
+        key = message.split(":", 1)[0] if message.startswith("sensors.") else "sensors"
+        raise InputFileError(path, message.split(": ", 1)[-1], key) from None
 
 
 def _section(data: Mapping[str, Any], name: str, path: Path, prefix: str = "") -> Mapping[str, Any]:

@@ -125,9 +125,13 @@ class Scenario:
         return None if self.car.plant.car is None else get_car(self.car.plant.car)
 
     def make_plant(self, seed: int = 0) -> Plant:
-        """A fresh plant of the car this scenario drives (``seed``: its odometry noise, if any)."""
+        """A fresh plant of the car this scenario drives, seen through its sensors.
+
+        ``seed``: the sensors' noise (and a zoo car's odometry noise, if any).
+        """
         zoo = self.zoo_car
-        return zoo.make_plant(seed) if zoo is not None else make_plant(self.car.plant.model)
+        plant = zoo.make_plant(seed) if zoo is not None else make_plant(self.car.plant.model)
+        return self.car.sensors.wrap(plant, seed)
 
     def provenance(self) -> Provenance:
         """The conditions of this scenario a data set or a model must have been made with.
@@ -163,6 +167,7 @@ class Scenario:
             },
             "dt": self.dt,
             "car": None if zoo is None else zoo.describe(),
+            "sensors": self.car.sensors.describe(),
         }
 
 

@@ -77,7 +77,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from rkmpc.core.errors import ParameterError
+from rkmpc.core.registry import Registry
 from rkmpc.vehicle.sensors.components import Localiser, WheelSpeedSensor, YawRateSensor
 from rkmpc.vehicle.sensors.profile import SensorProfile
 
@@ -110,16 +110,19 @@ def f1tenth_real() -> SensorProfile:
 
 
 #: Sensor profiles by name.
-SENSOR_PROFILES: dict[str, Callable[[], SensorProfile]] = {
-    "ideal": lambda: SensorProfile(name="ideal", summary="every field true and current"),
-    "no-steer": lambda: SensorProfile(
-        name="no-steer",
-        summary="true pose, speed and yaw rate; no wheel angle, no side-slip (the F1TENTH gym's observation)",
-        measures_steer_angle=False,
-        measures_slip_angle=False,
-    ),
-    "f1tenth-real": f1tenth_real,
-}
+SENSOR_PROFILES: Registry[Callable[[], SensorProfile]] = Registry(
+    "sensor profile",
+    {
+        "ideal": lambda: SensorProfile(name="ideal", summary="every field true and current"),
+        "no-steer": lambda: SensorProfile(
+            name="no-steer",
+            summary="true pose, speed and yaw rate; no wheel angle, no side-slip (the F1TENTH gym's)",
+            measures_steer_angle=False,
+            measures_slip_angle=False,
+        ),
+        "f1tenth-real": f1tenth_real,
+    },
+)
 
 
 def sensor_profile_names() -> list[str]:
@@ -128,10 +131,5 @@ def sensor_profile_names() -> list[str]:
 
 
 def get_sensor_profile(name: str) -> SensorProfile:
-    """The profile ``name``; :class:`ParameterError` naming it and the known ones when it is unknown."""
-    try:
-        factory = SENSOR_PROFILES[name]
-    except (KeyError, TypeError):
-        known = ", ".join(SENSOR_PROFILES)
-        raise ParameterError(f"unknown sensor profile {name!r}; known: {known}") from None
-    return factory()
+    """The profile ``name``; :class:`~rkmpc.core.registry.UnknownNameError` naming the known ones."""
+    return SENSOR_PROFILES[name]()
