@@ -57,6 +57,23 @@ MPC_WEIGHTS = (
 )
 
 
+#: Longest prediction horizon (steps): the condensed QP's matrices grow with its square (a horizon
+#: of 10,000 asks for gigabytes and minutes a step); 200 steps are 10 s at the paper's 20 Hz.
+MAX_HORIZON = 200
+#: Largest cost weight: beyond it the QPs lose their conditioning and every step falls back.
+MAX_WEIGHT = 1e8
+
+
+def check_weights(config: object, *names: str) -> None:
+    """ParameterError unless each named weight of ``config`` is in [0, :data:`MAX_WEIGHT`]."""
+    for name in names:
+        value = getattr(config, name)
+        if not (isinstance(value, int | float) and math.isfinite(value) and 0.0 <= value <= MAX_WEIGHT):
+            raise ParameterError(
+                f"{type(config).__name__}.{name} must be a number in [0, {MAX_WEIGHT:g}], got {value!r}"
+            )
+
+
 @dataclass(frozen=True)
 class TrackingCost:
     """Horizon, period and weights of the tracking cost shared by the MPCs.
@@ -64,9 +81,9 @@ class TrackingCost:
     Parameters
     ----------
     horizon : int
-        Prediction horizon N (steps), >= 2.
+        Prediction horizon N (steps), 2 to :data:`MAX_HORIZON`.
     dt : float
-        Control period T (s).
+        Control period T (s), at most 1 s.
     position_weight : float
         Weight of the squared x and y errors (1/m^2 relative units).
     heading_weight : float
@@ -114,10 +131,15 @@ class TrackingCost:
         name = type(self).__name__
         if not isinstance(self.speed_floor, SpeedFloor):
             raise ParameterError(f"{name}.speed_floor must be a SpeedFloor, got {self.speed_floor!r}")
-        if not is_integer(self.horizon, 2):
-            raise ParameterError(f"{name}.horizon must be an integer >= 2, got {self.horizon!r}")
+        if not is_integer(self.horizon, 2) or self.horizon > MAX_HORIZON:
+            raise ParameterError(
+                f"{name}.horizon must be an integer from 2 to {MAX_HORIZON}, got {self.horizon!r}"
+            )
         require_positive(self, "dt")
-        require_nonnegative(self, *MPC_WEIGHTS, "speed_margin", "speed_lead")
+        if self.dt > 1.0:
+            raise ParameterError(f"{name}.dt must be at most 1 s, got {self.dt!r}")
+        check_weights(self, *MPC_WEIGHTS)
+        require_nonnegative(self, "speed_margin", "speed_lead")
         if not self.speed_lead <= 10.0:
             raise ParameterError(f"{name}.speed_lead must be at most 10 s, got {self.speed_lead!r}")
         if self.speed_weight + self.speed_rate_weight <= 0 or self.steer_weight + self.steer_rate_weight <= 0:

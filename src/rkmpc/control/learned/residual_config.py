@@ -13,8 +13,9 @@ from typing import Any, Self
 
 from rkmpc.control.learned.adaptation import AdaptationConfig
 from rkmpc.control.learned.trust import TrustConfig
+from rkmpc.control.tracking import check_weights
 from rkmpc.core.errors import ParameterError
-from rkmpc.core.validation import require_nonnegative, require_positive_value
+from rkmpc.core.validation import require_positive_value
 
 __all__ = ["PAPER_RESIDUAL", "RKMPCConfig", "ResidualMPCConfig"]
 
@@ -56,13 +57,8 @@ class ResidualMPCConfig:
     steer_rate_weight: float = 0.0
 
     def __post_init__(self) -> None:
-        require_nonnegative(
-            self,
-            "position_weight",
-            "heading_weight",
-            "speed_weight",
-            "steer_weight",
-            "steer_rate_weight",
+        check_weights(
+            self, "position_weight", "heading_weight", "speed_weight", "steer_weight", "steer_rate_weight"
         )
         if self.speed_weight <= 0 or self.steer_weight <= 0:
             raise ParameterError("ResidualMPCConfig: speed_weight and steer_weight must be > 0")
@@ -143,7 +139,7 @@ class RKMPCConfig(ResidualMPCConfig):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        require_nonnegative(self, "lateral_accel_weight")
+        check_weights(self, "lateral_accel_weight")
         if not isinstance(self.slip_drift, bool):
             raise ParameterError(f"RKMPCConfig.slip_drift must be True or False, got {self.slip_drift!r}")
         if not isinstance(self.trust, TrustConfig) or not isinstance(self.adaptation, AdaptationConfig):
