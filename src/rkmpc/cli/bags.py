@@ -1,11 +1,16 @@
-"""``rkmpc collect --from-bag PATH``: a bag recorded on a car (ROS 1, ROS 2 sqlite3 or MCAP) as a data set."""
+"""``rkmpc collect --from-bag PATH`` or ``--from-csv DIR``: what a car recorded, as a data set."""
 
 from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
+from typing import TYPE_CHECKING
 
-__all__ = ["add_bag_args", "cmd_collect_from_bag"]
+if TYPE_CHECKING:
+    from rkmpc.learning.data.window import TimeWindow
+
+__all__ = ["add_bag_args", "cmd_collect_from_bag", "cmd_collect_from_csv", "quality_path"]
 
 
 def add_bag_args(parser: argparse.ArgumentParser) -> None:
@@ -62,6 +67,20 @@ def add_bag_args(parser: argparse.ArgumentParser) -> None:
         help="time messages by the bag's receive time, not their stamps",
     )
     group.add_argument("--min-samples", type=int, default=20, help="fewer transitions than this are an error")
+    group.add_argument(
+        "--window",
+        default=None,
+        metavar="START:END",
+        help="--from-bag, --from-csv: keep this stretch, s from the start (10:60, :45) or @stamps (@T0:@T1)",
+    )
+    csv = parser.add_argument_group("importing a CSV log (--from-csv)")
+    csv.add_argument("--from-csv", default=None, metavar="DIR", help="instead: read a folder of CSV files")
+    csv.add_argument(
+        "--csv-spec",
+        default=None,
+        metavar="NAME|SPEC.toml",
+        help="the log's column mapping and import settings: a preset (friction-maps) or a TOML file",
+    )
 
 
 def cmd_collect_from_bag(args: argparse.Namespace) -> int:
@@ -81,6 +100,7 @@ def cmd_collect_from_bag(args: argparse.Namespace) -> int:
         max_gap=args.max_gap,
         command_tolerance=args.command_tolerance,
         min_samples=args.min_samples,
+        window=_window(args),
     )
     if args.from_log is not None or args.excitation:
         raise ValueError("--from-bag, --from-log and --excitation exclude each other")
@@ -92,4 +112,39 @@ def cmd_collect_from_bag(args: argparse.Namespace) -> int:
     data.save(args.out)
     episodes = len(set(data.episode.tolist()))
     print(f"{len(data)} transitions in {episodes} episode(s) from {args.from_bag} -> {args.out}")
+    return 0
+
+
+def _window(args: argparse.Namespace) -> TimeWindow | None:
+    from rkmpc.learning.data.window import TimeWindow
+
+    return None if args.window is None else TimeWindow.parse(args.window)
+
+
+def quality_path(out: Path) -> Path:
+    """Where the quality report of the data set ``out`` goes: ``D.npz`` -> ``D.quality.json``."""
+    return out.with_name(f"{out.stem if out.suffix == '.npz' else out.name}.quality.json")
+
+
+def cmd_collect_from_csv(args: argparse.Namespace) -> int:
+    """Import the CSV log of ``--from-csv``, print its quality report, save the data set and the report."""
+    from rkmpc.cli.common import car_config
+    from rkmpc.core.io import write_json_atomic
+    from rkmpc.learning.data.logs import csv_spec, import_csv_log
+
+    if args.from_bag is not None or args.from_log is not None or args.excitation:
+        raise ValueError("--from-csv, --from-bag, --from-log and --excitation exclude each other")
+    if args.csv_spec is None:
+        raise ValueError("--from-csv needs --csv-spec: a preset (friction-maps) or a TOML spec file")
+    spec = csv_spec(args.csv_spec)
+    result = import_csv_log(
+        args.from_csv, car_config(args).vehicle, spec, window=_window(args), scale=args.scale
+    )
+    out = Path(args.out)
+    result.data.save(out)
+    report = quality_path(out)
+    write_json_atomic(report, result.report.to_json())
+    print(result.report.to_markdown())
+    episodes = len(set(result.data.episode.tolist()))
+    print(f"{len(result.data)} transitions in {episodes} episode(s) from {args.from_csv} -> {out} ({report})")
     return 0

@@ -9,6 +9,7 @@ from typing import Any
 
 from rkmpc.core.errors import ParameterError
 from rkmpc.core.validation import is_integer
+from rkmpc.learning.data.window import TimeWindow
 
 __all__ = [
     "DEFAULT_CHILD_FRAME",
@@ -93,6 +94,9 @@ class BagImportConfig:
         Below this speed (m/s) the side-slip angle is not defined and is NaN.
     min_samples : int
         Fewer transitions than this after resampling are an error ("too little data").
+    window : TimeWindow or None
+        Keep only this stretch of the bag (seconds from the first message of the topics read, or
+        absolute stamps); None: all of it.
     """
 
     dt: float = 0.05
@@ -107,9 +111,12 @@ class BagImportConfig:
     command_tolerance: float | None = None
     min_slip_speed: float = 0.5
     min_samples: int = 20
+    window: TimeWindow | None = None
 
     def __post_init__(self) -> None:
         name = type(self).__name__
+        if self.window is not None and not isinstance(self.window, TimeWindow):
+            raise ParameterError(f"{name}.window must be None or a TimeWindow, got {self.window!r}")
         if not (_real(self.dt) and self.dt > 0):
             raise ParameterError(f"{name}.dt must be finite and > 0, got {self.dt!r}")
         for topic in ("odom_topic", "drive_topic"):
@@ -158,6 +165,7 @@ class BagImportConfig:
             "max_gap": self.gap,
             "command_tolerance": self.tolerance,
             "min_slip_speed": self.min_slip_speed,
+            "window": None if self.window is None else self.window.describe(),
         }
 
 

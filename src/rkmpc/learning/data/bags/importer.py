@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -10,9 +11,10 @@ from rkmpc.core.errors import BagError
 from rkmpc.core.versions import versions
 from rkmpc.learning.contract import Provenance
 from rkmpc.learning.data.bags.config import BagImportConfig
-from rkmpc.learning.data.bags.read import BagStreams, read_streams
+from rkmpc.learning.data.bags.read import BagStreams, Stream, read_streams
 from rkmpc.learning.data.bags.resample import Samples, Transitions, resample, transitions
 from rkmpc.learning.data.dataset import TransitionDataset
+from rkmpc.learning.data.window import TimeWindow
 from rkmpc.vehicle.params import VehicleParams
 
 __all__ = ["import_bag", "streams_to_dataset"]
@@ -69,6 +71,8 @@ def streams_to_dataset(
     streams: BagStreams, vehicle: VehicleParams, config: BagImportConfig, *, scale: float | None = None
 ) -> TransitionDataset:
     """The transitions of streams read from a bag (:func:`import_bag` after reading)."""
+    if config.window is not None:
+        streams = _windowed(streams, config.window)
     samples = resample(
         streams.odom,
         streams.drive,
@@ -111,6 +115,38 @@ def streams_to_dataset(
     )
     made_with = Provenance(vehicle=vehicle.name, dt=config.dt, wheelbase=vehicle.wheelbase, scale=scale)
     return data.with_contract(made_with)
+
+
+def _windowed(streams: BagStreams, window: TimeWindow) -> BagStreams:
+    """The odometry and steer messages inside ``window``; BagError when no odometry is left.
+
+    The window counts from the first message of the topics read. The commands are all kept: the
+    grid starts at the first, as without a window, and a command sent before the window holds
+    into it.
+    """
+    every = [s for s in (streams.odom, streams.drive, streams.steer) if s is not None]
+    origin = min(int(s.stamps[0]) for s in every)
+    span = (max(int(s.stamps[-1]) for s in every) - origin) / 1e9
+    inside = window.mask(streams.odom.stamps, origin)
+    if not np.any(inside):
+        raise BagError(
+            streams.path,
+            f"the window {window.text()} holds no message of the topic; the bag's topics span "
+            f"0 to {span:.2f} s from its first message (stamp {origin / 1e9:.3f} s)",
+            streams.odom.topic,
+        )
+    steer = streams.steer
+    if steer is not None:
+        keep = window.mask(steer.stamps, origin)
+        steer = (
+            Stream(steer.topic, steer.stamps[keep], steer.values[keep], steer.fields)
+            if np.any(keep)
+            else None
+        )
+    odom = Stream(
+        streams.odom.topic, streams.odom.stamps[inside], streams.odom.values[inside], streams.odom.fields
+    )
+    return replace(streams, odom=odom, steer=steer)
 
 
 def _too_little(streams: BagStreams, samples: Samples, found: Transitions, config: BagImportConfig) -> str:

@@ -30,7 +30,7 @@ import numpy as np
 from rkmpc.core.angles import wrap_angle
 from rkmpc.learning.data.bags.read import ODOM_FIELDS, Stream
 
-__all__ = ["Samples", "Transitions", "odometry_at_cog", "resample", "transitions"]
+__all__ = ["Samples", "Transitions", "odometry_at_cog", "resample", "stretches", "transitions"]
 
 _NS = 1_000_000_000
 _X, _Y, _YAW, _VX, _VY, _R = range(len(ODOM_FIELDS))
@@ -98,7 +98,7 @@ def odometry_at_cog(values: np.ndarray, lr: float) -> np.ndarray:
     return out
 
 
-def _segments(stamps: np.ndarray, gap_ns: int) -> list[tuple[int, int]]:
+def stretches(stamps: np.ndarray, gap_ns: int) -> list[tuple[int, int]]:
     """``(first stamp, last stamp)`` (ns) of every stretch of messages without a gap over ``gap_ns``."""
     breaks = np.flatnonzero(np.diff(stamps) > gap_ns)
     starts = np.concatenate([[0], breaks + 1])
@@ -109,7 +109,7 @@ def _segments(stamps: np.ndarray, gap_ns: int) -> list[tuple[int, int]]:
 def _grid(stamps: np.ndarray, origin: int, dt_ns: int, gap_ns: int) -> tuple[np.ndarray, np.ndarray]:
     """Grid indices (>= 0) inside the odometry's stretches, and the stretch of each."""
     grids, segments = [], []
-    for k, (first, last) in enumerate(_segments(stamps, gap_ns)):
+    for k, (first, last) in enumerate(stretches(stamps, gap_ns)):
         lo = max(0, -((origin - first) // dt_ns))  # ceil((first - origin) / dt)
         hi = (last - origin) // dt_ns
         if hi >= lo:
