@@ -17,7 +17,7 @@ from importlib.metadata import version as package_version
 from pathlib import Path
 from typing import Any
 
-from rkmpc.cli.bags import add_bag_args, cmd_collect_from_bag
+from rkmpc.cli.bags import add_bag_args, cmd_collect_from_bag, cmd_collect_from_csv
 from rkmpc.cli.common import CACHE_HELP, add_config_args, add_force_arg, at_least, car_config
 from rkmpc.cli.compare import cmd_compare
 from rkmpc.cli.learn_pace import add_learn_pace_parser, cmd_learn_pace
@@ -237,6 +237,8 @@ def _cmd_collect(args: argparse.Namespace) -> int:
     check_output_file(args.out)
     if args.from_bag is not None:
         return cmd_collect_from_bag(args)
+    if args.from_csv is not None:
+        return cmd_collect_from_csv(args)
     if args.from_log is not None:
         log = StepLog.from_csv(args.from_log)
         data = TransitionDataset.from_log(log, metadata={**log.metadata, "source": str(args.from_log)})
