@@ -43,13 +43,13 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from rkmpc.core.angles import wrap_scalar
 from rkmpc.core.errors import ParameterError, PlantIntegrationError
 from rkmpc.core.observation import Command
 from rkmpc.core.validation import is_integer, is_positive_number
+from rkmpc.envs.progress import PathProgress, progress_info
 from rkmpc.learning.contract import Provenance
 from rkmpc.sim.scenario import Scenario, load_scenario
-from rkmpc.track.path import Path, Projection
+from rkmpc.track.path import Projection
 from rkmpc.vehicle.plants.base import Plant
 from rkmpc.vehicle.wrappers import NoiseStd, ObservationNoise
 
@@ -125,29 +125,6 @@ class F1TenthEnvConfig:
             raise ParameterError(f"F1TenthEnvConfig.start_s must be finite, got {self.start_s!r}")
 
 
-class _Progress:
-    """Distance driven along a closed path (m), unwrapped across the start line, and lap crossings."""
-
-    def __init__(self, path: Path, s0: float) -> None:
-        self.path = path
-        self.s = s0
-        self.distance = 0.0
-        #: Times (s) at which the car completed each lap, interpolated within the step.
-        self.crossings: list[float] = []
-
-    def update(self, x: float, y: float, time: float, dt: float) -> tuple[Projection, float]:
-        """Project the car at ``time`` (s); returns the projection and the step's advance (m)."""
-        length = self.path.length
-        proj = self.path.project(x, y, self.s)
-        ds = (proj.s - self.s + 0.5 * length) % length - 0.5 * length
-        goal = (len(self.crossings) + 1) * length
-        if self.distance + ds >= goal:
-            self.crossings.append(time - dt + dt * (goal - self.distance) / max(ds, 1e-12))
-        self.distance += ds
-        self.s = proj.s
-        return proj, ds
-
-
 class F1TenthTrackEnv(gym.Env[dict[str, Any], np.ndarray]):
     """One car of a scenario, as a Gymnasium environment with the F1TENTH gym's conventions.
 
@@ -195,7 +172,7 @@ class F1TenthTrackEnv(gym.Env[dict[str, Any], np.ndarray]):
         self.action_space = spaces.Box(low=self._action_low, high=self._action_high, dtype=np.float64)
         self.observation_space = spaces.Dict(self._spaces())
         self._plant: Plant | None = None
-        self._progress: _Progress | None = None
+        self._progress: PathProgress | None = None
         self._s_track: float | None = None
 
     def _spaces(self) -> dict[str, spaces.Space[Any]]:
@@ -244,7 +221,7 @@ class F1TenthTrackEnv(gym.Env[dict[str, Any], np.ndarray]):
         plant.reset(x, y, yaw, speed, steer)
         self._plant = plant
         self._s_track = None
-        progress = self._progress = _Progress(path, s0)
+        progress = self._progress = PathProgress(path, s0)
         margin = self._margin(plant)
         info = _info(plant, progress, path.project(x, y, s0), margin, "running", None)
         return self._observation(plant, margin), info
@@ -362,27 +339,15 @@ def _start_pose(poses: Any) -> tuple[float, float, float]:
 
 
 def _info(
-    plant: Plant, progress: _Progress, proj: Projection, margin: float, outcome: str, failure: str | None
+    plant: Plant, progress: PathProgress, proj: Projection, margin: float, outcome: str, failure: str | None
 ) -> dict[str, Any]:
-    """What the step measured against the reference path (true state), for logs and tests.
+    """:func:`~rkmpc.envs.progress.progress_info` of the plant's true state.
 
-    ``time`` (s), ``s`` (arc length, m), ``progress_laps``, ``lateral_error`` (m, left positive),
-    ``heading_error`` (rad), ``track_margin`` (m, < 0 off the track), ``completed_lap_times`` (s),
-    ``outcome`` (``"running"``, ``"off_track"``, ``"max_laps"``, ``"diverged"``,
-    ``"plant_failure"``) and ``failure`` (the plant's message, or None).
+    ``outcome`` is ``"running"``, ``"off_track"``, ``"max_laps"``, ``"diverged"`` or
+    ``"plant_failure"``; ``failure`` the plant's message, or None.
     """
     yaw = float(plant.state[plant.STATE_NAMES.index("yaw")])
-    return {
-        "time": plant.time,
-        "s": proj.s,
-        "progress_laps": progress.distance / progress.path.length,
-        "lateral_error": proj.lateral,
-        "heading_error": wrap_scalar(yaw - proj.heading) if math.isfinite(proj.heading) else math.nan,
-        "track_margin": margin,
-        "completed_lap_times": [float(t) for t in np.diff([0.0, *progress.crossings])],
-        "outcome": outcome,
-        "failure": failure,
-    }
+    return progress_info(plant.time, yaw, progress, proj, margin, outcome, failure)
 
 
 if ENV_ID not in gym.registry:
