@@ -226,7 +226,7 @@ class ControllerPolicy:
         if self._command is None or self._steps % self.hold_steps == 0:
             obs = self.read(observation)
             self._command = self.controller.step(obs)
-            status = STATUS_CODES.get(self.controller.info.status, STATUS_CODES["fallback"])
+            status = STATUS_CODES[self.controller.info.status]
             row = [obs.time, *obs.as_array(), self._command.speed, self._command.steer, status]
             self._rows.append(np.array(row))
         self._steps += 1
