@@ -3,7 +3,7 @@ PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 
-.PHONY: ros car-loop demo demo-quick test test-slow test-all lint bench bench-breakdown tracks-table study-tracks study-cars study-pace study-fullsize study-data faults results clean
+.PHONY: ros f1tenth-gym car-loop demo demo-quick test test-slow test-all lint bench bench-breakdown tracks-table study-tracks study-cars study-pace study-fullsize study-data faults results clean
 
 # PyTorch first and pinned exactly: a looser pin pulls a multi-gigabyte CUDA build.
 $(BIN)/python:
@@ -29,6 +29,19 @@ $(VENV)/.installed-ros: pyproject.toml $(ROS_MSGS) | $(BIN)/python
 
 ros: $(VENV)/.installed-ros
 
+# The F1TENTH gym v1.0.0 (on no index) for rkmpc.envs.f1tenth_gym and its tests: the f1tenth-gym extra (its
+# dependencies pinned, OpenCV's headless build), then the gym from ../shared/vendor without its declared
+# dependencies (they name opencv-python, a GUI build that needs libGL). The tests install it when the
+# tarball is there; without it the tests that drive the gym skip.
+F1TENTH_GYM_TARBALL := ../shared/vendor/f1tenth_gym-1.0.0.tar.gz
+$(VENV)/.installed-f1tenth-gym: pyproject.toml $(F1TENTH_GYM_TARBALL) | $(BIN)/python
+	$(BIN)/python -m pip install --quiet -e '.[f1tenth-gym]'
+	$(BIN)/python -m pip install --quiet --no-deps --force-reinstall $(F1TENTH_GYM_TARBALL)
+	touch $@
+F1TENTH_GYM_FOR_TESTS := $(if $(wildcard $(F1TENTH_GYM_TARBALL)),$(VENV)/.installed-f1tenth-gym)
+
+f1tenth-gym: $(VENV)/.installed-f1tenth-gym
+
 # The paper's on-car workflow over ROS 2 on this machine (docs/car.md): two LMPC laps recorded to a
 # bag by the node, the residual and identified models trained from it, LMPC, lmpc-id and RKMPC a lap
 # each, then 50 ms of added actuation delay with and without compensation. Table II: runs/car-loop/table2.md.
@@ -46,13 +59,13 @@ demo-quick: $(VENV)/.installed
 	$(BIN)/rkmpc compare --track builtin --controllers lmpc,lmpc-id,rkmpc --out runs/demo-quick --force
 
 # The fast tier (under 4 minutes on two quiet cores); `make test-slow` runs the long end-to-end tests.
-test: $(VENV)/.installed-test $(VENV)/.installed-ros
+test: $(VENV)/.installed-test $(VENV)/.installed-ros $(F1TENTH_GYM_FOR_TESTS)
 	$(BIN)/ruff check src tests benchmarks
 	$(BIN)/ruff format --check src tests benchmarks
 	$(BIN)/mypy
 	$(BIN)/python -m pytest -m "not slow"
 
-test-slow: $(VENV)/.installed-test $(VENV)/.installed-ros
+test-slow: $(VENV)/.installed-test $(VENV)/.installed-ros $(F1TENTH_GYM_FOR_TESTS)
 	$(BIN)/python -m pytest -m slow
 
 test-all: test test-slow

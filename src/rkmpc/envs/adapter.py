@@ -6,15 +6,25 @@ per physics step (0.01 s). rkmpc's controllers take an :class:`~rkmpc.core.obser
 and return a :class:`~rkmpc.core.observation.Command` once per control period (0.05 s).
 :class:`ControllerPolicy` joins the two for one agent:
 
-* the observation of agent ``agent`` becomes an ``Observation``: ``x, y, yaw`` from ``poses_x,
-  poses_y, poses_theta``; ``speed`` (along the heading) is ``linear_vels_x``; the yaw rate is
-  ``ang_vels_z``; the side-slip angle is ``atan2(linear_vels_y, linear_vels_x)``; the wheel angle
-  is ``steering_angles`` when the observation has it, else NaN (not measured);
+* the observation of agent ``agent`` becomes an ``Observation`` through an
+  :class:`~rkmpc.envs.layouts.ObservationLayout` (given, or found from the first observation by
+  :func:`~rkmpc.envs.layouts.detect_layout`): ``x, y, yaw`` from ``poses_x, poses_y, poses_theta``,
+  ``speed`` from ``linear_vels_x``, the yaw rate from ``ang_vels_z``, the side-slip angle from
+  ``linear_vels_y`` where that is measured and the wheel angle from ``steering_angles`` (or the
+  F1TENTH gym's per-agent features ``pose_x, ..., delta, beta``); whatever the environment does not
+  measure is NaN, never 0;
 * its time stamp is the policy's own clock, the number of environment steps since
   :meth:`ControllerPolicy.reset` times ``timestep`` (the F1TENTH gym's ``lap_times`` stop when its
   laps are done, so they are not a clock);
 * the controller is stepped on the first environment step of each control period and its command
-  is held for ``hold_steps = control_period / timestep`` steps (an integer).
+  is held for ``hold_steps = control_period / timestep`` steps (an integer);
+* the status of every control step is kept (:data:`rkmpc.control.base.STATUSES`): a controller that
+  falls back (a learned controller without the wheel angle it reads keeps its baseline, status
+  ``"guard"``) is counted in :attr:`Episode.status_counts`, and :func:`run_episode` logs a warning
+  when more than :data:`DEGRADED_SHARE` of the steps were fall-backs.
+
+Any :class:`~rkmpc.control.base.Controller` drives, a wrapped one too (a state estimator that fills
+the wheel angle from the commands before the controller sees the observation).
 
 :func:`run_episode` drives one episode with a policy and keeps, per control period, the
 observation the controller saw and the command it sent (a :class:`~rkmpc.sim.log.StepLog`), from
@@ -25,22 +35,24 @@ which :meth:`Episode.dataset` builds a :class:`~rkmpc.learning.data.dataset.Tran
 
 from __future__ import annotations
 
+import logging
 import math
+from collections import Counter
 from collections.abc import Mapping
-from dataclasses import dataclass, field, replace
 from typing import Any, Protocol
 
 import numpy as np
 
-from rkmpc.control.base import Controller
+from rkmpc.control.base import STATUS_CODES, STATUSES, Controller
 from rkmpc.core.errors import ParameterError
 from rkmpc.core.observation import OBSERVATION_FIELDS, Command, Observation
 from rkmpc.core.validation import is_integer, is_positive_number
-from rkmpc.learning.contract import CONTRACT_KEY, Provenance
-from rkmpc.learning.data.dataset import TransitionDataset
+from rkmpc.envs.episode import DEGRADED_SHARE, Episode
+from rkmpc.envs.layouts import ObservationLayout, detect_layout
 from rkmpc.sim.log import StepLog
 
 __all__ = [
+    "DEGRADED_SHARE",
     "ControllerPolicy",
     "Episode",
     "F1TenthLikeEnv",
@@ -49,10 +61,11 @@ __all__ = [
     "run_episode",
 ]
 
-#: Keys an F1TENTH observation must hold for :func:`observation_from_f1tenth`.
-REQUIRED_KEYS = ("poses_x", "poses_y", "poses_theta", "linear_vels_x", "linear_vels_y", "ang_vels_z")
-#: Columns of the log of :class:`ControllerPolicy`: time (s), the observation, the command.
-LOG_COLUMNS = ("t", *OBSERVATION_FIELDS, "cmd_speed", "cmd_steer")
+_LOG = logging.getLogger(__name__)
+
+#: Columns of the log of :class:`ControllerPolicy`: time (s), the observation, the command and the
+#: step's status (its code in :data:`rkmpc.control.base.STATUS_CODES`; NaN on the final row).
+LOG_COLUMNS = ("t", *OBSERVATION_FIELDS, "cmd_speed", "cmd_steer", "status")
 # Two periods whose ratio is this close to an integer are a whole number of steps.
 _RATIO_TOL = 1e-6
 
@@ -67,47 +80,46 @@ class F1TenthLikeEnv(Protocol):
     def step(self, action: np.ndarray) -> tuple[Any, Any, bool, bool, dict[str, Any]]: ...
 
 
-def _value(observation: Mapping[str, Any], key: str, agent: int) -> float:
-    values = np.asarray(observation[key], dtype=np.float64).reshape(-1)
-    if agent >= values.size:
-        raise ParameterError(f"the observation's {key!r} has {values.size} agent(s); agent {agent} asked for")
-    return float(values[agent])
-
-
 def observation_from_f1tenth(
-    observation: Mapping[str, Any], *, agent: int = 0, time: float = 0.0
+    observation: Mapping[str, Any],
+    *,
+    agent: int = 0,
+    time: float = 0.0,
+    layout: ObservationLayout | None = None,
 ) -> Observation:
-    """The :class:`Observation` of agent ``agent`` in an F1TENTH-style observation dict.
+    """The :class:`Observation` of agent ``agent`` in an F1TENTH-style observation.
 
     Parameters
     ----------
     observation : mapping
-        ``poses_x, poses_y`` (m), ``poses_theta`` (rad), ``linear_vels_x, linear_vels_y`` (m/s, in
-        the car's frame), ``ang_vels_z`` (rad/s), one value per agent; optionally
-        ``steering_angles`` (rad).
+        Flat (``poses_x, poses_y`` (m), ``poses_theta`` (rad), ``linear_vels_x, linear_vels_y``
+        (m/s, in the car's frame), ``ang_vels_z`` (rad/s), one value per agent; optionally
+        ``steering_angles`` (rad)) or the F1TENTH gym's per-agent features.
     agent : int
         Index of the agent.
     time : float
         Time stamp of the observation (s).
+    layout : ObservationLayout or None
+        How to read it; None: :func:`~rkmpc.envs.layouts.detect_layout`.
 
     Raises
     ------
     ParameterError
         When a key is missing, the agent does not exist, or the pose or speed is not finite.
     """
-    missing = [key for key in REQUIRED_KEYS if key not in observation]
+    found = detect_layout(observation) if layout is None else layout
+    return found.read(observation, agent=agent, time=time)
+
+
+def _check_measured(controller: Controller, layout: ObservationLayout) -> None:
+    """Refuse a controller that needs a field ``layout`` never measures (it would only ever fall back)."""
+    missing = [name for name in controller.measured_fields if name in layout.never_measured]
     if missing:
         raise ParameterError(
-            f"the observation lacks the F1TENTH keys {missing}; it has {sorted(observation)}"
+            f"ControllerPolicy: the controller {controller.name!r} needs {missing} measured, which the "
+            f"observation ({layout.name}) never gives; estimate them first (a controller that fills them "
+            "from the commands, such as a state estimator wrapping it)"
         )
-    x, y, yaw, vx, vy, r = (_value(observation, key, agent) for key in REQUIRED_KEYS)
-    if not all(math.isfinite(v) for v in (x, y, yaw, vx)):
-        raise ParameterError(
-            f"agent {agent}'s pose and speed must be finite, got x={x}, y={y}, yaw={yaw}, vx={vx}"
-        )
-    steer = _value(observation, "steering_angles", agent) if "steering_angles" in observation else math.nan
-    slip = math.atan2(vy, vx) if math.isfinite(vy) else math.nan
-    return Observation(x=x, y=y, yaw=yaw, speed=vx, yaw_rate=r, slip_angle=slip, steer_angle=steer, time=time)
 
 
 def action_from_command(command: Command) -> np.ndarray:
@@ -132,11 +144,16 @@ class ControllerPolicy:
         (``controller.dt``). Must be a whole number of ``timestep``.
     agent : int
         Index of the agent the controller drives in the observation.
+    layout : ObservationLayout or None
+        How the environment's observation reads (:mod:`rkmpc.envs.layouts`); None: found from the
+        first observation (:func:`~rkmpc.envs.layouts.detect_layout`) and kept.
 
     Attributes
     ----------
     hold_steps : int
         Environment steps each command is held for.
+    layout : ObservationLayout or None
+        The layout in use (None until the first observation when it is detected).
     """
 
     def __init__(
@@ -146,6 +163,7 @@ class ControllerPolicy:
         *,
         control_period: float | None = None,
         agent: int = 0,
+        layout: ObservationLayout | None = None,
     ) -> None:
         if not is_positive_number(timestep):
             raise ParameterError(f"ControllerPolicy: timestep must be finite and > 0, got {timestep!r}")
@@ -170,6 +188,10 @@ class ControllerPolicy:
         self.control_period = float(period)
         self.hold_steps = round(ratio)
         self.agent = int(agent)
+        if layout is not None:
+            _check_measured(controller, layout)
+        self.layout = layout
+        self._detect = layout is None
         self._steps = 0
         self._command: Command | None = None
         self._rows: list[np.ndarray] = []
@@ -180,20 +202,41 @@ class ControllerPolicy:
         self._steps = 0
         self._command = None
         self._rows = []
+        if self._detect:
+            self.layout = None
 
     @property
     def time(self) -> float:
         """Time of the next observation the policy expects (s), from its own step count."""
         return self._steps * self.timestep
 
+    def _layout(self, observation: Mapping[str, Any]) -> ObservationLayout:
+        if self.layout is None:
+            layout = detect_layout(observation)
+            _check_measured(self.controller, layout)
+            self.layout = layout
+        return self.layout
+
+    def read(self, observation: Mapping[str, Any]) -> Observation:
+        """The controller's :class:`Observation` of ``observation``, stamped with the policy's clock."""
+        return self._layout(observation).read(observation, agent=self.agent, time=self.time)
+
     def command(self, observation: Mapping[str, Any]) -> Command:
         """The command for this environment step: a new one at the start of each control period."""
         if self._command is None or self._steps % self.hold_steps == 0:
-            obs = observation_from_f1tenth(observation, agent=self.agent, time=self.time)
+            obs = self.read(observation)
             self._command = self.controller.step(obs)
-            self._rows.append(np.array([obs.time, *obs.as_array(), self._command.speed, self._command.steer]))
+            status = STATUS_CODES[self.controller.info.status]
+            row = [obs.time, *obs.as_array(), self._command.speed, self._command.steer, status]
+            self._rows.append(np.array(row))
         self._steps += 1
         return self._command
+
+    @property
+    def status_counts(self) -> dict[str, int]:
+        """Control steps since :meth:`reset` by status (:data:`rkmpc.control.base.STATUSES`)."""
+        codes = Counter(int(row[-1]) for row in self._rows)
+        return {status: codes[code] for code, status in enumerate(STATUSES) if codes[code]}
 
     def __call__(self, observation: Mapping[str, Any]) -> np.ndarray:
         """The action ``[[steer, speed]]`` (shape (1, 2)) for this step; one agent only.
@@ -201,7 +244,7 @@ class ControllerPolicy:
         With several agents, drive the ego with :meth:`command` and build the
         ``(num_agents, 2)`` action yourself.
         """
-        agents = np.asarray(observation["poses_x"]).size if "poses_x" in observation else 0
+        agents = self._layout(observation).agents(observation)
         if agents != 1:
             raise ParameterError(
                 f"ControllerPolicy returns one agent's action; the observation has {agents} agent(s): "
@@ -221,65 +264,11 @@ class ControllerPolicy:
             log.append(row)
         if final_observation is not None:
             try:
-                obs = observation_from_f1tenth(final_observation, agent=self.agent, time=self.time)
+                obs = self.read(final_observation)
             except ParameterError:
                 return log
-            log.append(np.array([obs.time, *obs.as_array(), math.nan, math.nan]))
+            log.append(np.array([obs.time, *obs.as_array(), math.nan, math.nan, math.nan]))
         return log
-
-
-@dataclass
-class Episode:
-    """One episode driven by :func:`run_episode`.
-
-    Parameters
-    ----------
-    log : StepLog
-        One row per control period (:data:`LOG_COLUMNS`), the last one the final observation.
-    control_period : float
-        Period of the log's rows (s).
-    steps : int
-        Environment steps driven.
-    total_reward : float
-        Sum of the rewards.
-    terminated, truncated : bool
-        How the episode ended (both False when ``max_steps`` ended it).
-    info : dict
-        The environment's last ``info``.
-    """
-
-    log: StepLog
-    control_period: float
-    steps: int
-    total_reward: float
-    terminated: bool
-    truncated: bool
-    info: dict[str, Any] = field(default_factory=dict)
-
-    def dataset(
-        self, metadata: Mapping[str, Any] | None = None, made_with: Provenance | None = None
-    ) -> TransitionDataset:
-        """The episode's transitions at the control period (:meth:`TransitionDataset.from_log`).
-
-        Parameters
-        ----------
-        metadata : mapping, optional
-            Added to the data set's metadata (``source`` is ``"gym"`` unless given).
-        made_with : Provenance, optional
-            The car and track scale the data were recorded with (for the environments of
-            :mod:`rkmpc.envs.f1tenth`, ``env.unwrapped.provenance()``); its period becomes the
-            control period and the data set records it as its contract.
-        """
-        meta: dict[str, Any] = {
-            "source": "gym",
-            "steps": self.steps,
-            "terminated": self.terminated,
-            "truncated": self.truncated,
-        }
-        meta.update(metadata or {})
-        if made_with is not None:
-            meta[CONTRACT_KEY] = replace(made_with, dt=self.control_period).to_json()
-        return TransitionDataset.from_log(self.log, metadata=meta, dt=self.control_period)
 
 
 def run_episode(
@@ -304,6 +293,12 @@ def run_episode(
         Passed to ``env.reset`` (for instance ``{"poses": ...}``).
     max_steps : int or None
         Largest number of environment steps (>= 1); None: until the environment ends the episode.
+
+    Returns
+    -------
+    Episode
+        With the control steps' statuses; when more than :data:`DEGRADED_SHARE` of them fell back,
+        a warning says so on the ``rkmpc.envs.adapter`` logger (:meth:`Episode.degraded`).
     """
     if max_steps is not None and not is_integer(max_steps, 1):
         raise ParameterError(f"run_episode: max_steps must be None or an integer >= 1, got {max_steps!r}")
@@ -315,7 +310,7 @@ def run_episode(
         observation, reward, terminated, truncated, info = env.step(policy(observation))
         total += float(reward)
         steps += 1
-    return Episode(
+    episode = Episode(
         log=policy.log(observation),
         control_period=policy.control_period,
         steps=steps,
@@ -323,4 +318,10 @@ def run_episode(
         terminated=bool(terminated),
         truncated=bool(truncated),
         info=dict(info),
+        controller=policy.controller.name,
+        status_counts=policy.status_counts,
     )
+    message = episode.degraded()
+    if message is not None:
+        _LOG.warning("%s", message)
+    return episode

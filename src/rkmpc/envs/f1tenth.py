@@ -43,10 +43,10 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from rkmpc.core.angles import wrap_scalar
 from rkmpc.core.errors import ParameterError, PlantIntegrationError
 from rkmpc.core.observation import Command
 from rkmpc.core.validation import is_integer, is_positive_number
+from rkmpc.envs.progress import progress_info
 from rkmpc.learning.contract import Provenance
 from rkmpc.sim.laps import LapCounter
 from rkmpc.sim.scenario import Scenario, load_scenario
@@ -342,25 +342,13 @@ def _start_pose(poses: Any) -> tuple[float, float, float]:
 def _info(
     plant: Plant, progress: LapCounter, proj: Projection, margin: float, outcome: str, failure: str | None
 ) -> dict[str, Any]:
-    """What the step measured against the reference path (true state), for logs and tests.
+    """:func:`~rkmpc.envs.progress.progress_info` of the plant's true state.
 
-    ``time`` (s), ``s`` (arc length, m), ``progress_laps``, ``lateral_error`` (m, left positive),
-    ``heading_error`` (rad), ``track_margin`` (m, < 0 off the track), ``completed_lap_times`` (s),
-    ``outcome`` (``"running"``, ``"off_track"``, ``"max_laps"``, ``"diverged"``,
-    ``"plant_failure"``) and ``failure`` (the plant's message, or None).
+    ``outcome`` is ``"running"``, ``"off_track"``, ``"max_laps"``, ``"diverged"`` or
+    ``"plant_failure"``; ``failure`` the plant's message, or None.
     """
     yaw = float(plant.state[plant.STATE_NAMES.index("yaw")])
-    return {
-        "time": plant.time,
-        "s": proj.s,
-        "progress_laps": progress.distance / progress.path.length,
-        "lateral_error": proj.lateral,
-        "heading_error": wrap_scalar(yaw - proj.heading) if math.isfinite(proj.heading) else math.nan,
-        "track_margin": margin,
-        "completed_lap_times": [float(t) for t in np.diff([0.0, *progress.crossings])],
-        "outcome": outcome,
-        "failure": failure,
-    }
+    return progress_info(plant.time, yaw, progress, proj, margin, outcome, failure)
 
 
 if ENV_ID not in gym.registry:
