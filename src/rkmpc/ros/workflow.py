@@ -33,7 +33,6 @@ import multiprocessing
 import os
 import shutil
 import signal
-import sys
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, replace
@@ -43,10 +42,12 @@ from typing import Any
 from rkmpc.config.car import CarConfig
 from rkmpc.config.loader import load_preset
 from rkmpc.config.ros import LatencySettings
-from rkmpc.core.errors import ParameterError, RkmpcError
+from rkmpc.core.errors import RkmpcError
 from rkmpc.core.io import check_output_folder, write_json_atomic
 from rkmpc.ros.config import NodeTask
-from rkmpc.ros.sim_config import CLOCKS, SimNodeConfig
+from rkmpc.ros.processes import child_process, node_process, sim_node_process
+from rkmpc.ros.sim_config import SimNodeConfig
+from rkmpc.ros.workflow_config import WorkflowConfig
 from rkmpc.ros.workflow_report import build_report, write_report
 
 __all__ = ["MARKER", "STEERING_TOPIC", "WorkflowConfig", "WorkflowError", "prepare_folder", "run_workflow"]
@@ -61,104 +62,6 @@ _GRACE_S = 30.0
 
 class WorkflowError(RkmpcError):
     """A stage of the workflow failed (names the stage and the log to read)."""
-
-
-@dataclass(frozen=True)
-class WorkflowConfig:
-    """What ``rkmpc car-loop`` runs (SI units).
-
-    Parameters
-    ----------
-    out : str
-        The output folder (must not exist or be empty, unless ``force``).
-    clock : str
-        ``"lockstep"`` (default) or ``"realtime"`` (:data:`rkmpc.ros.sim_config.CLOCKS`).
-    track : str
-        Built-in track name or TUM centre-line CSV.
-    record_laps : int
-        LMPC laps recorded for training (the paper's two).
-    controllers : tuple of str
-        Controllers of Table II, driven a lap each.
-    delay : float
-        Added actuation delay (s) of the latency-compensation runs; 0 skips them.
-    delay_controllers : tuple of str
-        Controllers driven with the added delay, with and without compensation.
-    seed : int
-        Seed of the simulated car and of the training.
-    domain_id : int or None
-        ``ROS_DOMAIN_ID`` of the run (0-101); None picks one from the process id.
-    force : bool
-        Replace an earlier ``car-loop`` output folder.
-    timeout : float
-        Wall-clock bound (s) of each process: a guard against a hang, never a measure.
-    """
-
-    out: str
-    clock: str = "lockstep"
-    track: str = "builtin"
-    record_laps: int = 2
-    controllers: tuple[str, ...] = ("lmpc", "lmpc-id", "rkmpc")
-    delay: float = 0.05
-    delay_controllers: tuple[str, ...] = ("lmpc", "rkmpc")
-    seed: int = 0
-    domain_id: int | None = None
-    force: bool = False
-    timeout: float = 3600.0
-
-    def __post_init__(self) -> None:
-        from rkmpc.learning.recipes import recipe_for
-
-        if self.clock not in CLOCKS:
-            raise ParameterError(f"clock must be one of {list(CLOCKS)}, got {self.clock!r}")
-        if self.record_laps < 1:
-            raise ParameterError(f"record_laps must be >= 1, got {self.record_laps}")
-        if not (self.delay >= 0.0 and self.timeout > 0.0):
-            raise ParameterError("delay must be >= 0 and timeout > 0")
-        if self.domain_id is not None and not 0 <= self.domain_id <= 101:
-            raise ParameterError(f"domain_id must be in 0-101, got {self.domain_id}")
-        learned = {r.controller: r.kind for name in self.controllers if (r := recipe_for(name)) is not None}
-        learned.update(
-            {r.controller: r.kind for name in self.delay_controllers if (r := recipe_for(name)) is not None}
-        )
-        unsupported = sorted(name for name, kind in learned.items() if kind not in ("residual", "identified"))
-        if unsupported:
-            raise ParameterError(
-                f"the workflow trains residual and identified models only, not for {unsupported}"
-            )
-
-
-def _child(
-    name: str, target: Callable[..., int], args: tuple[Any, ...], log: str, env: dict[str, str]
-) -> None:
-    """A workflow process: its own session, its output to ``log``, its environment, then ``target``."""
-    os.setsid()  # a Ctrl-C at the terminal reaches the workflow, which stops its processes in order
-    sink = os.open(log, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
-    os.dup2(sink, 1)
-    os.dup2(sink, 2)
-    sys.stdout = open(1, "w", buffering=1, closefd=False)
-    sys.stderr = open(2, "w", buffering=1, closefd=False)
-    os.environ.clear()
-    os.environ.update(env)
-    try:
-        code = target(*args)
-    except (RkmpcError, ValueError, OSError) as exc:
-        print(f"rkmpc {name}: error: {exc}", file=sys.stderr)
-        code = 2
-    sys.stdout.flush()
-    sys.stderr.flush()
-    os._exit(code)
-
-
-def _node(car: CarConfig, task: NodeTask, out: str, bag: str | None) -> int:
-    from rkmpc.ros.node import run_node
-
-    return run_node(car, task, out=Path(out), record=None if bag is None else Path(bag))
-
-
-def _sim_node(config: SimNodeConfig, out: str) -> int:
-    from rkmpc.ros.sim_node import run_sim_node
-
-    return run_sim_node(config, out=Path(out))
 
 
 @dataclass
@@ -178,7 +81,7 @@ class _Run:
         log = self.out / "logs" / f"{name}.log"
         self.commands.append(what)
         process = multiprocessing.get_context("spawn").Process(
-            target=_child, args=(name, target, args, str(log), self.env), name=name
+            target=child_process, args=(name, target, args, str(log), self.env), name=name
         )
         process.start()
         self.processes.append((process, log))
@@ -374,7 +277,7 @@ def _drive(
     bag_text = "" if bag is None else f" --record {bag}"
     node = run.start(
         f"{name}-node",
-        _node,
+        node_process,
         (car, task, str(folder / "node"), None if bag is None else str(bag)),
         f"rkmpc node --config cars/{name}.json --track {config.track} --controller {controller}"
         + ("" if model is None else f" --model {model}")
@@ -394,7 +297,7 @@ def _drive(
     )
     sim = run.start(
         f"{name}-sim",
-        _sim_node,
+        sim_node_process,
         (sim_config, str(folder / "sim")),
         f"rkmpc sim-node --track {config.track} --clock {config.clock} --laps {laps} "
         f"--steering-topic {STEERING_TOPIC} --seed {config.seed} --actuation-delay {delay}",

@@ -12,11 +12,8 @@ observation of ``obs[k + 1]``). Learning code that needs sequences (the
 local-frame windows of :mod:`rkmpc.learning.data.augmentation`) never joins two
 episodes.
 
-Data sets are saved as one ``.npz`` file (see :meth:`TransitionDataset.save`)
-and validated when read back; every problem with a file raises
-:class:`rkmpc.core.errors.InputFileError` naming the file, the array and the
-problem. The checks of the arrays and metadata live in
-:mod:`rkmpc.learning.data.checks`.
+Data sets are one ``.npz`` file (:meth:`TransitionDataset.save`), validated when read back
+(:mod:`rkmpc.learning.data.checks`: errors name the file, the array and the problem).
 """
 
 from __future__ import annotations
@@ -69,8 +66,8 @@ class StepTable(Protocol):
     columns: tuple[str, ...]
     metadata: dict[str, Any]
 
-    def __len__(self) -> int: ...
-    def __getitem__(self, name: str) -> np.ndarray: ...
+    def __len__(self) -> int: ...  # noqa: D105
+    def __getitem__(self, name: str) -> np.ndarray: ...  # noqa: D105
 
 
 @dataclass(frozen=True, eq=False)

@@ -1,0 +1,109 @@
+"""The dense-QP interface: :class:`DenseQP` and :class:`QPResult`."""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["QP_REASONS", "DenseQP", "QPResult"]
+
+
+@dataclass(frozen=True)
+class QPResult:
+    """Outcome of one QP solve.
+
+    Parameters
+    ----------
+    x : numpy.ndarray
+        Primal solution, shape (n,); meaningless when ``solved`` is False.
+    solved : bool
+        Whether the solver reported an optimal solution.
+    status : str
+        The solver's status, in words.
+    iterations : int
+        Iterations the solver used.
+    """
+
+    x: np.ndarray
+    solved: bool
+    status: str
+    iterations: int
+
+    @property
+    def reason(self) -> str:
+        """The outcome as a controller status (:data:`rkmpc.control.base.STATUSES`).
+
+        ``"ok"`` when solved with a finite solution; ``"infeasible"`` and ``"iteration_limit"``
+        where the solver says so; ``"numerical"`` for every other failure (see
+        :data:`QP_REASONS`), a non-finite "solution" included.
+        """
+        if self.solved:
+            return "ok" if bool(np.isfinite(self.x).all()) else "numerical"
+        return QP_REASONS[self.status] if self.status in QP_REASONS else "numerical"
+
+
+class DenseQP(ABC):
+    """Common interface of the QP backends.
+
+    Parameters
+    ----------
+    max_iterations : int
+        Iteration budget per solve; a solve that needs more reports failure.
+    """
+
+    def __init__(self, max_iterations: int = 200) -> None:
+        if max_iterations < 1:
+            raise ValueError(f"max_iterations must be >= 1, got {max_iterations}")
+        self.max_iterations = max_iterations
+        self._is_setup = False
+
+    @property
+    def is_setup(self) -> bool:
+        """Whether :meth:`setup` has been called."""
+        return self._is_setup
+
+    @abstractmethod
+    def setup(
+        self,
+        H: np.ndarray,
+        f: np.ndarray,
+        lb: np.ndarray,
+        ub: np.ndarray,
+        A: np.ndarray,
+        lbA: np.ndarray,
+        ubA: np.ndarray,
+    ) -> None:
+        """Build the solver workspace (called once)."""
+
+    @abstractmethod
+    def update(
+        self,
+        H: np.ndarray | None = None,
+        f: np.ndarray | None = None,
+        lb: np.ndarray | None = None,
+        ub: np.ndarray | None = None,
+        lbA: np.ndarray | None = None,
+        ubA: np.ndarray | None = None,
+    ) -> None:
+        """Replace numbers of the problem; shapes must stay the same."""
+
+    @abstractmethod
+    def solve(self) -> QPResult:
+        """Solve the current problem, warm-started from the previous solve."""
+
+
+#: Controller status of a failed QP by the solver's status (DAQP's words and OSQP's); others are
+#: ``"numerical"``. A time limit is never set here; should a solver report one, it is a budget.
+QP_REASONS: dict[str, str] = {
+    "infeasible": "infeasible",
+    "iteration limit": "iteration_limit",
+    "time limit": "iteration_limit",
+    "primal infeasible": "infeasible",
+    "primal infeasible inaccurate": "infeasible",
+    "dual infeasible": "infeasible",
+    "dual infeasible inaccurate": "infeasible",
+    "maximum iterations reached": "iteration_limit",
+    "run time limit reached": "iteration_limit",
+}

@@ -1,0 +1,115 @@
+"""OSQP, the sparse ADMM solver, behind :class:`~rkmpc.control.qp.base.DenseQP`."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from rkmpc.control.qp.base import DenseQP, QPResult
+
+__all__ = ["OsqpQP"]
+
+
+class OsqpQP(DenseQP):
+    """OSQP (ADMM, sparse) on the same problem, warm-started from the previous iterate.
+
+    The dense ``H`` is stored with a full upper-triangular pattern so that its
+    values can be updated in place.
+
+    Parameters
+    ----------
+    max_iterations : int
+        ADMM iteration budget per solve.
+    eps : float
+        Absolute and relative tolerance.
+    factorize : bool
+        Accepted for interchangeability with :class:`DaqpQP` and ignored: OSQP
+        always factorises its own KKT matrix.
+    """
+
+    def __init__(self, max_iterations: int = 4000, eps: float = 1e-5, factorize: bool = False) -> None:
+        super().__init__(max_iterations)
+        self.eps = eps
+        self._solver: Any = None
+        self._triu: tuple[np.ndarray, np.ndarray] = (np.zeros(0, int), np.zeros(0, int))
+        self._l = np.zeros(0)
+        self._u = np.zeros(0)
+        self._n = 0
+
+    def setup(
+        self,
+        H: np.ndarray,
+        f: np.ndarray,
+        lb: np.ndarray,
+        ub: np.ndarray,
+        A: np.ndarray,
+        lbA: np.ndarray,
+        ubA: np.ndarray,
+    ) -> None:
+        import osqp
+        from scipy import sparse
+
+        n = int(np.shape(H)[0])
+        self._n = n
+        rows, cols = np.triu_indices(n)
+        # Column-major order of the upper triangle, the order CSC stores it in.
+        order = np.lexsort((rows, cols))
+        self._triu = (rows[order], cols[order])
+        P = sparse.csc_matrix((np.asarray(H)[self._triu], self._triu), shape=(n, n))
+        Acon = sparse.vstack([sparse.identity(n, format="csc"), sparse.csc_matrix(A)], format="csc")
+        self._l = np.concatenate([lb, lbA]).astype(float)
+        self._u = np.concatenate([ub, ubA]).astype(float)
+        self._solver = osqp.OSQP()
+        self._solver.setup(
+            P,
+            np.asarray(f, dtype=float),
+            Acon,
+            self._l,
+            self._u,
+            verbose=False,
+            warm_starting=True,
+            polishing=True,
+            eps_abs=self.eps,
+            eps_rel=self.eps,
+            max_iter=self.max_iterations,
+        )
+        self._is_setup = True
+
+    def update(
+        self,
+        H: np.ndarray | None = None,
+        f: np.ndarray | None = None,
+        lb: np.ndarray | None = None,
+        ub: np.ndarray | None = None,
+        lbA: np.ndarray | None = None,
+        ubA: np.ndarray | None = None,
+    ) -> None:
+        n = self._n
+        if lb is not None:
+            self._l[:n] = lb
+        if lbA is not None:
+            self._l[n:] = lbA
+        if ub is not None:
+            self._u[:n] = ub
+        if ubA is not None:
+            self._u[n:] = ubA
+        kwargs: dict[str, np.ndarray] = {}
+        if H is not None:
+            kwargs["Px"] = np.asarray(H)[self._triu]
+        if f is not None:
+            kwargs["q"] = np.asarray(f, dtype=float)
+        if any(b is not None for b in (lb, ub, lbA, ubA)):
+            kwargs["l"] = self._l
+            kwargs["u"] = self._u
+        if kwargs:
+            self._solver.update(**kwargs)
+
+    def solve(self) -> QPResult:
+        res = self._solver.solve(raise_error=False)
+        status = str(res.info.status)
+        solved = status in ("solved", "solved inaccurate")
+        x = res.x if res.x is not None else np.full(self._n, np.nan)
+        return QPResult(
+            x=np.asarray(x, dtype=float), solved=solved, status=status, iterations=int(res.info.iter)
+        )
