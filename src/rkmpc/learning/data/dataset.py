@@ -66,8 +66,8 @@ class StepTable(Protocol):
     columns: tuple[str, ...]
     metadata: dict[str, Any]
 
-    def __len__(self) -> int: ...  # noqa: D105
-    def __getitem__(self, name: str) -> np.ndarray: ...  # noqa: D105
+    def __len__(self) -> int: ...
+    def __getitem__(self, name: str) -> np.ndarray: ...
 
 
 @dataclass(frozen=True, eq=False)
@@ -139,8 +139,6 @@ class TransitionDataset:
         n_episodes = len(np.unique(self.episode))
         return f"TransitionDataset(N={len(self)}, episodes={n_episodes}, dt={self.dt!r})"
 
-    # ------------------------------------------------------------------ views
-
     def poses(self) -> np.ndarray:
         """Poses at the start of each step, ``[x, y, yaw]`` (m, m, rad), shape (N, 3)."""
         return self.obs[:, :3]
@@ -183,8 +181,6 @@ class TransitionDataset:
         digest.update(np.ascontiguousarray(self.episode, dtype="<i8").tobytes())
         digest.update(repr(float(self.dt)).encode())
         return digest.hexdigest()
-
-    # ------------------------------------------------------------------ building
 
     @classmethod
     def from_log(
@@ -312,8 +308,6 @@ class TransitionDataset:
             episode=np.concatenate(episodes),
             metadata=metadata,
         )
-
-    # ------------------------------------------------------------------ files
 
     def save(self, path: str | Path) -> None:
         """Write the data set as one ``.npz`` file.
