@@ -1,0 +1,388 @@
+"""The state a controller needs from what a real car measures: an extended Kalman filter.
+
+:class:`StateEstimator` fuses the localiser's pose (late, irregular, with jumps), the wheel
+speed (noisy, mis-scaled) and the gyro (noisy, biased) on the single-track model of
+:mod:`rkmpc.estimation.model`, with the front wheel angle propagated from the commands sent
+through a :class:`~rkmpc.estimation.steering.SteeringModel`. Each :meth:`StateEstimator.update`
+predicts to the observation's time, then fuses, in this order, a new pose, the speed, the yaw
+rate and a measured slip angle (each only when finite), each as its own EKF update behind a
+chi-square gate.
+
+What each estimate rests on
+---------------------------
+* Pose: the localiser, extrapolated over its latency (``time - pose_time``) along the estimated
+  velocities; between poses, dead reckoning on speed and yaw rate.
+* Speed ``vx``: the wheel speed divided by the estimated sensor scale; the scale is observable
+  because the poses measure the distance driven (it settles over some seconds of driving).
+* Yaw rate: the gyro less its estimated bias (the bias is observable from the poses' heading).
+* Slip angle ``atan(vy / |vx|)``: weakly observable. The pose measures the course (direction of
+  travel) only through position differences, good to about ``position_std / (v T)`` rad over
+  ``T`` seconds: at 5 cm and 3 m/s some 0.05 rad over 0.3 s, the size of a 1:10 car's slip
+  itself. The estimate therefore rests mostly on the model: the rear axle's steady slip for the
+  measured yaw rate and speed (linear tyre, the car's cornering stiffness), corrected by the
+  poses where they disagree for long. Expect its sign and size in steady cornering, not its
+  transients, and an error that grows where the rear tyres saturate.
+* Wheel angle: the steering model's response to the commands, or the measurement where the car
+  has one (the model then continues from it).
+
+Robustness
+----------
+A pose whose innovation lies beyond the gate is rejected and counted (a jump of the
+localiser); ``max_rejections`` rejections of one sensor in a row re-initialise the part of the
+state it measures from it, counted too. A pose that did not change (same ``pose_time``, or the
+same values when there is none) is no measurement; an older one than the last used, or one
+older than ``max_latency``, is not used. A gap longer than ``max_gap``, a time going backwards or
+a state turned non-finite restarts the filter from the observation.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+from scipy.stats import chi2
+
+from rkmpc.core.angles import wrap_scalar
+from rkmpc.core.observation import Command, Observation
+from rkmpc.estimation.config import EstimatorConfig
+from rkmpc.estimation.diagnostics import EstimatorCounts, EstimatorDiagnostics
+from rkmpc.estimation.model import BIAS, N_STATES, SCALE, VX, VY, YAW, R, SingleTrackModel, X, Y
+from rkmpc.estimation.steering import SteeringModel, WheelAnglePropagator
+from rkmpc.vehicle.params import VehicleParams
+
+__all__ = ["FilterStep", "StateEstimator", "slip_of"]
+
+#: Speed (m/s) below which the slip angle's denominator is held.
+_SLIP_SPEED_FLOOR = 0.1
+
+
+def slip_of(vx: float, vy: float) -> float:
+    """Side-slip angle (rad) of body velocities ``vx, vy`` (m/s): ``atan(vy / max(|vx|, 0.1))``."""
+    return math.atan(vy / max(abs(vx), _SLIP_SPEED_FLOOR))
+
+
+@dataclass(frozen=True)
+class FilterStep:
+    """One update of the filter, for a smoother (copies).
+
+    Parameters
+    ----------
+    started : bool
+        The update (re)started the filter, or re-initialised part of its state: no Bayesian
+        link to the update before.
+    transition, noise : numpy.ndarray
+        Jacobian ``F`` and process noise ``Q`` of the prediction from the update before (8, 8).
+    prior_state, prior_covariance : numpy.ndarray
+        The prediction (8,), (8, 8).
+    state, covariance : numpy.ndarray
+        The estimate after the measurements (8,), (8, 8).
+    wheel_angle : float
+        The wheel angle used (rad).
+    """
+
+    started: bool
+    transition: np.ndarray
+    noise: np.ndarray
+    prior_state: np.ndarray
+    prior_covariance: np.ndarray
+    state: np.ndarray
+    covariance: np.ndarray
+    wheel_angle: float
+
+
+class StateEstimator:
+    """An EKF for a car with a pose localiser, a wheel-speed sensor and a gyro (see the module notes).
+
+    Parameters
+    ----------
+    vehicle : VehicleParams
+        The car (geometry, mass and tyres of the process model).
+    config : EstimatorConfig, optional
+        Tuning (:class:`EstimatorConfig` defaults).
+    steering : SteeringModel, optional
+        The servo the wheel angle is propagated through (the car's nominal one by default).
+    """
+
+    def __init__(
+        self,
+        vehicle: VehicleParams,
+        config: EstimatorConfig | None = None,
+        steering: SteeringModel | None = None,
+    ) -> None:
+        self.vehicle = vehicle
+        self.config = config if config is not None else EstimatorConfig()
+        self.steering = steering if steering is not None else SteeringModel.nominal(vehicle)
+        cfg = self.config
+        self.model = SingleTrackModel(vehicle, cfg)
+        self._wheel = WheelAnglePropagator(self.steering, cfg.control_period)
+        self._gate1 = float(chi2.ppf(cfg.gate_probability, 1))
+        self._gate3 = float(chi2.ppf(cfg.gate_probability, 3))
+        self._pose_var = (cfg.position_std**2, cfg.position_std**2, cfg.yaw_std**2)
+        self._pose_density = (cfg.position_density**2, cfg.position_density**2, cfg.yaw_density**2)
+        self._speed_var = cfg.speed_std**2
+        self._gyro_var = cfg.yaw_rate_std**2
+        self._slip_var = cfg.slip_std**2
+        stds = (
+            cfg.initial_position_std,
+            cfg.initial_position_std,
+            cfg.initial_yaw_std,
+            cfg.initial_speed_std,
+            cfg.initial_lateral_velocity_std,
+            cfg.initial_yaw_rate_std,
+            cfg.initial_speed_scale_std,
+            cfg.initial_gyro_bias_std,
+        )
+        self._p0 = [s * s for s in stds]
+        self._identity = np.eye(N_STATES)
+        self._zeros = np.zeros((N_STATES, N_STATES))
+        # Measurement rows of the scalar sensors, filled in place: H = hi e_i + hj e_j.
+        self._rows = {sensor: np.zeros(N_STATES) for sensor in ("speed", "yaw_rate", "slip")}
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the state, the commands and the counts."""
+        self._x = np.zeros(N_STATES)
+        self._P = np.diag(self._p0)
+        self._initialised = False
+        self._time = math.nan
+        self._delta = math.nan
+        self._last_pose = (math.nan, math.nan, math.nan)
+        self._last_pose_time = -math.inf
+        self._streak = {"pose": 0, "speed": 0, "yaw_rate": 0, "slip": 0}
+        self._counts = EstimatorCounts()
+        self._wheel.reset()
+        self._started = False
+        self._F = self._identity
+        self._Q = self._zeros
+        self._x_prior = self._x
+        self._P_prior = self._P
+
+    @property
+    def initialised(self) -> bool:
+        """Whether the filter has a state (it needs one finite pose)."""
+        return self._initialised
+
+    def diagnostics(self) -> EstimatorDiagnostics:
+        """Counts since :meth:`reset` and the sensor estimates (scale, bias)."""
+        return self._counts.record(float(self._x[SCALE]), float(self._x[BIAS]))
+
+    def last_step(self) -> FilterStep:
+        """The last update's prediction and estimate (copies), for a smoother."""
+        return FilterStep(
+            started=self._started,
+            transition=self._F.copy(),
+            noise=self._Q.copy(),
+            prior_state=self._x_prior.copy(),
+            prior_covariance=self._P_prior.copy(),
+            state=self._x.copy(),
+            covariance=self._P.copy(),
+            wheel_angle=self._delta,
+        )
+
+    def update(self, observation: Observation, command_sent_last: Command | None) -> Observation:
+        """The estimate at ``observation.time`` from this raw observation; never raises on NaN.
+
+        Parameters
+        ----------
+        observation : Observation
+            What the sensors report; NaN fields are not measured, ``pose_time`` says how old the
+            pose is (NaN: current; unchanged: no new pose).
+        command_sent_last : Command or None
+            The command sent at the previous control period (None before the first).
+
+        Returns
+        -------
+        Observation
+            Pose (m, m, rad), speed ``vx`` (m/s), yaw rate (rad/s), slip angle (rad) and wheel
+            angle (rad) at ``observation.time``, ``pose_time`` NaN. Before the first finite pose,
+            the observation itself with the wheel angle filled in.
+        """
+        self._counts.updates += 1
+        steer = None if command_sent_last is None else float(command_sent_last.steer)
+        measured_steer = observation.steer_angle
+        delta_before = self._delta
+        delta = self._wheel.step(steer, measured_steer if math.isfinite(measured_steer) else math.nan)
+        self._delta = delta
+        t = float(observation.time)
+        self._started = False
+        if self._initialised:
+            dt = t - self._time
+            if not dt >= 0.0:
+                self._counts.restarts_time += 1
+                self._initialised = False
+            elif dt > self.config.max_gap:
+                self._counts.restarts_gap += 1
+                self._initialised = False
+        if not self._initialised:
+            if not self._initialise(observation, t, delta):
+                return replace(observation, steer_angle=delta)
+            return self._estimate(t, delta)
+        if dt > 0.0:
+            self._predict(dt, 0.5 * (delta_before + delta))
+        else:
+            self._F, self._Q = self._identity, self._zeros
+            self._x_prior, self._P_prior = self._x, self._P
+        self._fuse(observation, t)
+        self._time = t
+        x, y, yaw, vx, vy, r, k, b = self._x.tolist()
+        if not math.isfinite(x + y + yaw + vx + vy + r + k + b):
+            self._counts.restarts_diverged += 1
+            self._initialised = False
+            if not self._initialise(observation, t, delta):
+                return replace(observation, steer_angle=delta)
+            return self._estimate(t, delta)
+        return Observation(x, y, yaw, vx, r, slip_of(vx, vy), delta, t)
+
+    # ------------------------------------------------------------------ steps
+
+    def _estimate(self, t: float, delta: float) -> Observation:
+        x, y, yaw, vx, vy, r, _, _ = self._x.tolist()
+        return Observation(x, y, yaw, vx, r, slip_of(vx, vy), delta, t)
+
+    def _initialise(self, obs: Observation, t: float, delta: float) -> bool:
+        """Start from the observation's pose; False when it has none."""
+        if not (math.isfinite(obs.x) and math.isfinite(obs.y) and math.isfinite(obs.yaw)):
+            return False
+        model = self.model
+        vx = obs.speed if math.isfinite(obs.speed) else 0.0
+        r = obs.yaw_rate if math.isfinite(obs.yaw_rate) else model.steady_yaw_rate(vx, delta)
+        vy = vx * math.tan(obs.slip_angle) if math.isfinite(obs.slip_angle) else model.lateral_gain(vx) * r
+        lag = t - obs.pose_time if math.isfinite(obs.pose_time) else 0.0
+        lag = min(max(lag, 0.0), self.config.max_latency)
+        c, s = math.cos(obs.yaw), math.sin(obs.yaw)
+        self._x = np.array(
+            [
+                obs.x + lag * (vx * c - vy * s),
+                obs.y + lag * (vx * s + vy * c),
+                obs.yaw + lag * r,
+                vx,
+                vy,
+                r,
+                1.0,
+                0.0,
+            ]
+        )
+        self._P = np.diag(self._p0)
+        self._last_pose = (obs.x, obs.y, obs.yaw)
+        self._last_pose_time = obs.pose_time if math.isfinite(obs.pose_time) else -math.inf
+        self._streak = dict.fromkeys(self._streak, 0)
+        self._counts.used["pose"] += 1
+        self._time = t
+        self._initialised = True
+        self._started = True
+        self._F, self._Q = self._identity, self._zeros
+        self._x_prior, self._P_prior = self._x, self._P
+        return True
+
+    def _predict(self, dt: float, delta: float) -> None:
+        # Every later change makes new arrays (no in-place updates), so the prior stays as it is.
+        model = self.model
+        self._x = self._x_prior = np.array(model.transition(self._x.tolist(), dt, delta))
+        F = model.F
+        Q = model.process_noise(dt)
+        self._P = self._P_prior = F @ self._P @ F.T + Q
+        self._F, self._Q = F, Q
+
+    def _fuse(self, obs: Observation, t: float) -> None:
+        px, py, pyaw = obs.x, obs.y, obs.yaw
+        counts = self._counts
+        if math.isfinite(px) and math.isfinite(py) and math.isfinite(pyaw):
+            pose_time = obs.pose_time
+            if math.isfinite(pose_time):
+                if pose_time == self._last_pose_time:
+                    counts.poses_repeated += 1
+                elif pose_time < self._last_pose_time or t - pose_time > self.config.max_latency:
+                    counts.poses_too_old += 1
+                    self._last_pose_time = max(self._last_pose_time, pose_time)
+                else:
+                    self._last_pose_time = pose_time
+                    self._last_pose = (px, py, pyaw)
+                    self._pose_update(px, py, pyaw, max(t - pose_time, 0.0))
+            elif (px, py, pyaw) == self._last_pose:
+                counts.poses_repeated += 1
+            else:
+                self._last_pose = (px, py, pyaw)
+                self._pose_update(px, py, pyaw, 0.0)
+        if math.isfinite(obs.speed):
+            k, vx = float(self._x[SCALE]), float(self._x[VX])
+            self._scalar("speed", obs.speed - k * vx, VX, k, SCALE, vx, self._speed_var)
+        if math.isfinite(obs.yaw_rate):
+            gyro = float(self._x[R]) + float(self._x[BIAS])
+            self._scalar("yaw_rate", obs.yaw_rate - gyro, R, 1.0, BIAS, 1.0, self._gyro_var)
+        vx, vy = float(self._x[VX]), float(self._x[VY])
+        if math.isfinite(obs.slip_angle) and vx > self.config.min_slip_speed:
+            norm = vx * vx + vy * vy
+            innovation = wrap_scalar(obs.slip_angle - math.atan2(vy, vx))
+            self._scalar("slip", innovation, VY, vx / norm, VX, -vy / norm, self._slip_var)
+
+    def _scalar(
+        self, sensor: str, innovation: float, i: int, hi: float, j: int, hj: float, var: float
+    ) -> None:
+        """One scalar EKF update with ``H = hi e_i + hj e_j`` behind the 1-dof gate."""
+        row = self._rows[sensor]
+        row[i] = hi
+        row[j] = hj
+        pht = self._P @ row
+        s = hi * float(pht[i]) + hj * float(pht[j]) + var
+        if innovation * innovation > self._gate1 * s:
+            self._rejected(sensor, ((i, innovation / hi),))
+            return
+        self._streak[sensor] = 0
+        self._counts.used[sensor] += 1
+        self._x = self._x + pht * (innovation / s)
+        self._P = self._P - np.multiply.outer(pht, pht * (1.0 / s))
+
+    def _pose_update(self, px: float, py: float, pyaw: float, lag: float) -> None:
+        """The 3-dof pose update behind the 3-dof gate; the noise grows with the lag."""
+        h, H = self.model.pose(self._x.tolist(), lag)
+        nu = (px - h[0], py - h[1], wrap_scalar(pyaw - h[2]))
+        P = self._P
+        PHt = P @ H.T
+        S = H @ PHt
+        (a, b, c), (_, d, e), (_, _, f) = S.tolist()
+        var, dens = self._pose_var, self._pose_density
+        a += var[0] + lag * dens[0]
+        d += var[1] + lag * dens[1]
+        f += var[2] + lag * dens[2]
+        # The inverse of the symmetric 3x3 innovation covariance, by cofactors.
+        ia, ib, ic = d * f - e * e, c * e - b * f, b * e - c * d
+        idd, ie, iff = a * f - c * c, b * c - a * e, a * d - b * b
+        det = a * ia + b * ib + c * ic
+        n0, n1, n2 = nu
+        w0 = (ia * n0 + ib * n1 + ic * n2) / det
+        w1 = (ib * n0 + idd * n1 + ie * n2) / det
+        w2 = (ic * n0 + ie * n1 + iff * n2) / det
+        if not n0 * w0 + n1 * w1 + n2 * w2 <= self._gate3:
+            self._rejected("pose", ((X, n0), (Y, n1), (YAW, n2)))
+            return
+        self._streak["pose"] = 0
+        self._counts.used["pose"] += 1
+        self._x = self._x + PHt @ np.array((w0, w1, w2))
+        inverse = np.array(((ia, ib, ic), (ib, idd, ie), (ic, ie, iff))) * (1.0 / det)
+        P = P - PHt @ inverse @ PHt.T
+        self._P = (P + P.T) * 0.5
+
+    # ------------------------------------------------------------------ rejections
+
+    def _rejected(self, sensor: str, shift: tuple[tuple[int, float], ...]) -> None:
+        """Count a gated measurement; after ``max_rejections`` in a row, take the sensor's word.
+
+        ``shift`` holds ``(state index, change)`` pairs that make the prediction match the
+        measurement (to first order); those states restart with their initial variance.
+        """
+        self._counts.rejected[sensor] += 1
+        self._streak[sensor] += 1
+        if self._streak[sensor] < self.config.max_rejections:
+            return
+        self._streak[sensor] = 0
+        self._counts.reinitialised[sensor] += 1
+        self._started = True
+        self._x = self._x.copy()
+        P = self._P = self._P.copy()
+        for index, change in shift:
+            self._x[index] += change
+            P[index, :] = 0.0
+            P[:, index] = 0.0
+        for index, _ in shift:
+            P[index, index] = self._p0[index]
