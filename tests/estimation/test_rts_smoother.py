@@ -127,7 +127,7 @@ def test_bad_arrays_are_refused_naming_them():
 
 
 def dataset(n: int = 200) -> tuple[TransitionDataset, np.ndarray]:
-    t, raw, commands, truth = circle(n + 1, seed=2)
+    _, raw, commands, truth = circle(n + 1, seed=2)
     raw[:, 3] = np.maximum(raw[:, 3], 0.0)
     data = TransitionDataset(
         obs=raw[:-1], command=commands[:-1], next_obs=raw[1:], dt=DT, episode=np.zeros(n, dtype=int)

@@ -1,4 +1,4 @@
-"""The EKF: its algebra against filterpy's, its models against their equations, its rejections and restarts."""
+"""The EKF: its algebra against filterpy's, its models against their equations, rejections, restarts."""
 
 from __future__ import annotations
 

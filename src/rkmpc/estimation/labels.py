@@ -110,7 +110,8 @@ def estimate_dataset(
     cfg = config if config is not None else EstimatorConfig(control_period=data.dt)
     if not math.isclose(cfg.control_period, data.dt, rel_tol=1e-9):
         raise ParameterError(
-            f"estimate_dataset: config.control_period is {cfg.control_period!r} s, the data's dt {data.dt!r} s"
+            f"estimate_dataset: config.control_period is {cfg.control_period!r} s, "
+            f"the data's dt {data.dt!r} s"
         )
     obs: list[np.ndarray] = []
     command: list[np.ndarray] = []
