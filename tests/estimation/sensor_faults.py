@@ -39,7 +39,9 @@ class RealSensors(PlantWrapper):
     Attributes
     ----------
     jumps : int
-        Poses delivered with a jump so far.
+        Poses measured with a jump so far (some are superseded before they are delivered).
+    delivered : list of Observation
+        Every observation handed out since the last reset.
     """
 
     def __init__(self, plant: Plant, faults: Faults, seed: int) -> None:
@@ -55,6 +57,7 @@ class RealSensors(PlantWrapper):
         self._pending: list[tuple[float, tuple[float, float, float, float]]] = []
         self._pose = (math.nan, math.nan, math.nan, math.nan)
         self.jumps = 0
+        self.delivered: list[Observation] = []
 
     def reset(self, x: float, y: float, yaw: float, speed: float, steer: float = 0.0) -> None:
         super().reset(x, y, yaw, speed, steer)
@@ -88,7 +91,7 @@ class RealSensors(PlantWrapper):
         x, y, yaw, measured = self._pose
         if not math.isfinite(x):  # nothing delivered yet: the first pose, as it is, now
             x, y, yaw, measured = true.x, true.y, true.yaw, t
-        return Observation(
+        observation = Observation(
             x,
             y,
             yaw,
@@ -99,3 +102,5 @@ class RealSensors(PlantWrapper):
             t,
             measured,
         )
+        self.delivered.append(observation)
+        return observation
