@@ -15,6 +15,7 @@ from rkmpc.vehicle.params import f1tenth
 
 CAR = f1tenth()
 DT = 0.05
+DRIVE = Command(2.0, 0.1)
 
 
 class Scripted(Controller):
@@ -24,7 +25,7 @@ class Scripted(Controller):
     dt = DT
     measured_fields = ("yaw_rate", "steer_angle")
 
-    def __init__(self, command: Command = Command(2.0, 0.1), fail: bool = False) -> None:
+    def __init__(self, command: Command = DRIVE, fail: bool = False) -> None:
         super().__init__()
         self.command, self.fail = command, fail
         self.seen: list[Observation] = []
