@@ -330,8 +330,9 @@ class StateEstimator:
             return
         self._streak[sensor] = 0
         self._counts.used[sensor] += 1
-        self._x = self._x + pht * (innovation / s)
-        self._P = self._P - np.multiply.outer(pht, pht * (1.0 / s))
+        gain = pht * (1.0 / s)
+        self._x = self._x + gain * innovation
+        self._P = self._P - np.multiply.outer(gain, pht)
 
     def _pose_update(self, px: float, py: float, pyaw: float, lag: float) -> None:
         """The 3-dof pose update behind the 3-dof gate; the noise grows with the lag."""
@@ -347,20 +348,20 @@ class StateEstimator:
         f += var[2] + lag * dens[2]
         # The inverse of the symmetric 3x3 innovation covariance, by cofactors.
         ia, ib, ic = d * f - e * e, c * e - b * f, b * e - c * d
-        idd, ie, iff = a * f - c * c, b * c - a * e, a * d - b * b
-        det = a * ia + b * ib + c * ic
+        scale = 1.0 / (a * ia + b * ib + c * ic)
+        ia, ib, ic = ia * scale, ib * scale, ic * scale
+        idd, ie, iff = (a * f - c * c) * scale, (b * c - a * e) * scale, (a * d - b * b) * scale
         n0, n1, n2 = nu
-        w0 = (ia * n0 + ib * n1 + ic * n2) / det
-        w1 = (ib * n0 + idd * n1 + ie * n2) / det
-        w2 = (ic * n0 + ie * n1 + iff * n2) / det
+        w0 = ia * n0 + ib * n1 + ic * n2
+        w1 = ib * n0 + idd * n1 + ie * n2
+        w2 = ic * n0 + ie * n1 + iff * n2
         if not n0 * w0 + n1 * w1 + n2 * w2 <= self._gate3:
             self._rejected("pose", ((X, n0), (Y, n1), (YAW, n2)))
             return
         self._streak["pose"] = 0
         self._counts.used["pose"] += 1
         self._x = self._x + PHt @ np.array((w0, w1, w2))
-        inverse = np.array(((ia, ib, ic), (ib, idd, ie), (ic, ie, iff))) * (1.0 / det)
-        P = P - PHt @ inverse @ PHt.T
+        P = P - PHt @ np.array(((ia, ib, ic), (ib, idd, ie), (ic, ie, iff))) @ PHt.T
         self._P = (P + P.T) * 0.5
 
     # ------------------------------------------------------------------ rejections
