@@ -71,7 +71,8 @@ def main() -> None:
     config = EstimatorConfig(control_period=scenario.dt)
     plant = RealSensors(make_plant("f1tenth"), Faults(), seed=0)
     controller = EstimatedController(
-        make_controller("lmpc", scenario.reference, scenario.vehicle), StateEstimator(scenario.vehicle, config)
+        make_controller("lmpc", scenario.reference, scenario.vehicle),
+        StateEstimator(scenario.vehicle, config),
     )
     added: list[float] = []
 

@@ -221,6 +221,18 @@ def test_a_gap_or_a_time_going_back_restarts_the_filter():
     assert estimator.last_step().started
 
 
+def test_the_first_pose_after_a_long_blackout_restarts_the_pose_without_a_rejection():
+    estimator = StateEstimator(CAR)
+    drive(estimator, [straight(DT * k) for k in range(10)])
+    # 3 s without a pose (the last one repeated) nor speed and yaw rate: dead reckoning only.
+    blind = [Observation(0.9, 0.0, 0.0, math.nan, time=DT * k, pose_time=0.45) for k in range(10, 70)]
+    drive(estimator, blind)
+    back = estimator.update(Observation(3.0, 2.0, 1.0, 0.0, 0.0, time=3.5, pose_time=3.5), Command(0.0, 0.0))
+    diag = estimator.diagnostics()
+    assert (diag.restarts_gap, diag.poses_rejected, diag.pose_reinitialisations) == (1, 0, 0)
+    assert (back.x, back.y, back.yaw) == pytest.approx((3.0, 2.0, 1.0))
+
+
 def test_measured_wheel_and_slip_angles_are_used():
     estimator = StateEstimator(CAR)
     obs = [straight(DT * k, slip_angle=0.05, steer_angle=0.12) for k in range(30)]

@@ -78,7 +78,9 @@ class EstimatorConfig:
     max_latency : float
         Oldest pose (s behind the observation's time) the filter uses.
     max_gap : float
-        Longest time (s) between two updates; a longer one restarts the filter.
+        Longest time (s) between two updates, a longer one restarts the filter; and between two
+        poses used, after a longer one the next pose restarts the pose (the dead-reckoned one and
+        its covariance no longer mean anything).
     min_slip_speed : float
         Speed (m/s) below which a measured slip angle is not used (it is undefined at rest).
     """
@@ -91,9 +93,9 @@ class EstimatorConfig:
     slip_std: float = 0.02
     position_density: float = 0.02
     yaw_density: float = 0.01
-    acceleration_density: float = 1.0
+    acceleration_density: float = 3.0
     lateral_velocity_density: float = 0.3
-    yaw_acceleration_density: float = 1.0
+    yaw_acceleration_density: float = 5.0
     speed_scale_density: float = 0.01
     gyro_bias_density: float = 0.005
     yaw_rate_time_constant: float = 0.1

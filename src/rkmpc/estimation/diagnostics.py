@@ -72,8 +72,8 @@ class EstimatorDiagnostics:
         Times that part of the state was reset to its sensor after ``max_rejections`` rejections
         in a row (the sensor was right and the filter wrong).
     restarts_gap, restarts_time, restarts_diverged : int
-        Restarts of the whole filter: after a gap longer than ``max_gap``, a time going backwards,
-        a state turned non-finite.
+        Restarts of the whole filter: after a gap longer than ``max_gap`` (or of its pose, after as
+        long without one), a time going backwards, a state turned non-finite.
     speed_scale : float
         Estimated scale of the wheel-speed sensor (measured / true, -).
     gyro_bias : float

@@ -32,7 +32,8 @@ localiser); ``max_rejections`` rejections of one sensor in a row re-initialise t
 state it measures from it, counted too. A pose that did not change (same ``pose_time``, or the
 same values when there is none) is no measurement; an older one than the last used, or one
 older than ``max_latency``, is not used. A gap longer than ``max_gap``, a time going backwards or
-a state turned non-finite restarts the filter from the observation.
+a state turned non-finite restarts the filter from the observation; the first pose after more
+than ``max_gap`` without one restarts the pose from it (counted as a gap restart).
 """
 
 from __future__ import annotations
@@ -149,6 +150,7 @@ class StateEstimator:
         self._delta = math.nan
         self._last_pose = (math.nan, math.nan, math.nan)
         self._last_pose_time = -math.inf
+        self._pose_used_at = -math.inf
         self._streak = {"pose": 0, "speed": 0, "yaw_rate": 0, "slip": 0}
         self._counts = EstimatorCounts()
         self._wheel.reset()
@@ -266,6 +268,7 @@ class StateEstimator:
         self._P = np.diag(self._p0)
         self._last_pose = (obs.x, obs.y, obs.yaw)
         self._last_pose_time = obs.pose_time if math.isfinite(obs.pose_time) else -math.inf
+        self._pose_used_at = t - lag
         self._streak = dict.fromkeys(self._streak, 0)
         self._counts.used["pose"] += 1
         self._time = t
@@ -298,12 +301,12 @@ class StateEstimator:
                 else:
                     self._last_pose_time = pose_time
                     self._last_pose = (px, py, pyaw)
-                    self._pose_update(px, py, pyaw, max(t - pose_time, 0.0))
+                    self._new_pose(px, py, pyaw, max(t - pose_time, 0.0), t)
             elif (px, py, pyaw) == self._last_pose:
                 counts.poses_repeated += 1
             else:
                 self._last_pose = (px, py, pyaw)
-                self._pose_update(px, py, pyaw, 0.0)
+                self._new_pose(px, py, pyaw, 0.0, t)
         if math.isfinite(obs.speed):
             k, vx = float(self._x[SCALE]), float(self._x[VX])
             self._scalar("speed", obs.speed - k * vx, VX, k, SCALE, vx, self._speed_var)
@@ -315,6 +318,21 @@ class StateEstimator:
             norm = vx * vx + vy * vy
             innovation = wrap_scalar(obs.slip_angle - math.atan2(vy, vx))
             self._scalar("slip", innovation, VY, vx / norm, VX, -vy / norm, self._slip_var)
+
+    def _new_pose(self, px: float, py: float, pyaw: float, lag: float, t: float) -> None:
+        """Fuse a new pose; after more than ``max_gap`` without one, start the pose afresh from it."""
+        if t - lag - self._pose_used_at > self.config.max_gap:
+            # Dead-reckoned that long, the pose's linearised covariance means nothing (the heading
+            # may have turned around): the gate would judge the localiser by a meaningless ellipse.
+            self._counts.restarts_gap += 1
+            h, _ = self.model.pose(self._x.tolist(), lag)
+            nu = (px - h[0], py - h[1], wrap_scalar(pyaw - h[2]))
+            self._reinitialise(((X, nu[0]), (Y, nu[1]), (YAW, nu[2])))
+            self._counts.used["pose"] += 1
+            self._pose_used_at = t - lag
+            return
+        if self._pose_update(px, py, pyaw, lag):
+            self._pose_used_at = t - lag
 
     def _scalar(
         self, sensor: str, innovation: float, i: int, hi: float, j: int, hj: float, var: float
@@ -334,8 +352,8 @@ class StateEstimator:
         self._x = self._x + gain * innovation
         self._P = self._P - np.multiply.outer(gain, pht)
 
-    def _pose_update(self, px: float, py: float, pyaw: float, lag: float) -> None:
-        """The 3-dof pose update behind the 3-dof gate; the noise grows with the lag."""
+    def _pose_update(self, px: float, py: float, pyaw: float, lag: float) -> bool:
+        """The 3-dof pose update behind the 3-dof gate (False: rejected); the noise grows with the lag."""
         h, H = self.model.pose(self._x.tolist(), lag)
         nu = (px - h[0], py - h[1], wrap_scalar(pyaw - h[2]))
         P = self._P
@@ -356,28 +374,33 @@ class StateEstimator:
         w1 = ib * n0 + idd * n1 + ie * n2
         w2 = ic * n0 + ie * n1 + iff * n2
         if not n0 * w0 + n1 * w1 + n2 * w2 <= self._gate3:
-            self._rejected("pose", ((X, n0), (Y, n1), (YAW, n2)))
-            return
+            return self._rejected("pose", ((X, n0), (Y, n1), (YAW, n2)))
         self._streak["pose"] = 0
         self._counts.used["pose"] += 1
         self._x = self._x + PHt @ np.array((w0, w1, w2))
         P = P - PHt @ np.array(((ia, ib, ic), (ib, idd, ie), (ic, ie, iff))) @ PHt.T
         self._P = (P + P.T) * 0.5
+        return True
 
     # ------------------------------------------------------------------ rejections
 
-    def _rejected(self, sensor: str, shift: tuple[tuple[int, float], ...]) -> None:
+    def _rejected(self, sensor: str, shift: tuple[tuple[int, float], ...]) -> bool:
         """Count a gated measurement; after ``max_rejections`` in a row, take the sensor's word.
 
         ``shift`` holds ``(state index, change)`` pairs that make the prediction match the
-        measurement (to first order); those states restart with their initial variance.
+        measurement (to first order). Returns whether the measurement was taken after all.
         """
         self._counts.rejected[sensor] += 1
         self._streak[sensor] += 1
         if self._streak[sensor] < self.config.max_rejections:
-            return
+            return False
         self._streak[sensor] = 0
         self._counts.reinitialised[sensor] += 1
+        self._reinitialise(shift)
+        return True
+
+    def _reinitialise(self, shift: tuple[tuple[int, float], ...]) -> None:
+        """Move the states of ``shift`` by its changes; they restart with their initial variance."""
         self._started = True
         self._x = self._x.copy()
         P = self._P = self._P.copy()
