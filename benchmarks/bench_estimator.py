@@ -45,7 +45,7 @@ from rkmpc.vehicle.registry import make_plant
 ROOT = Path(__file__).resolve().parents[1]
 # The sensors of a real car, as the tests inject them (one definition of them).
 sys.path.insert(0, str(ROOT / "tests" / "estimation"))
-from sensor_faults import Faults, RealSensors  # noqa: E402
+from sensor_faults import Faults, RealSensors
 
 SHARED_MONZA = ROOT.parent / "shared" / "tracks" / "centerlines" / "Monza.csv"
 

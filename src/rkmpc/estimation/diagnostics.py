@@ -1,10 +1,12 @@
-"""What the state estimator did with its measurements: counts by sensor and reason, as a typed record."""
+"""What the state estimator did: counts by sensor and reason (typed record), and one update for a smoother."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
 
-__all__ = ["SENSORS", "EstimatorCounts", "EstimatorDiagnostics"]
+import numpy as np
+
+__all__ = ["SENSORS", "EstimatorCounts", "EstimatorDiagnostics", "FilterStep"]
 
 #: The measurements the filter fuses, in the order it applies them in one update.
 SENSORS: tuple[str, ...] = ("pose", "speed", "yaw_rate", "slip")
@@ -104,3 +106,32 @@ class EstimatorDiagnostics:
     def as_dict(self, prefix: str = "estimator_") -> dict[str, float]:
         """Every field as a float under ``prefix + name`` (for controller diagnostics and metadata)."""
         return {f"{prefix}{f.name}": float(getattr(self, f.name)) for f in fields(self)}
+
+
+@dataclass(frozen=True)
+class FilterStep:
+    """One update of the filter, for a smoother (copies).
+
+    Parameters
+    ----------
+    started : bool
+        The update (re)started the filter, or re-initialised part of its state: no Bayesian
+        link to the update before.
+    transition, noise : numpy.ndarray
+        Jacobian ``F`` and process noise ``Q`` of the prediction from the update before (8, 8).
+    prior_state, prior_covariance : numpy.ndarray
+        The prediction (8,), (8, 8).
+    state, covariance : numpy.ndarray
+        The estimate after the measurements (8,), (8, 8).
+    wheel_angle : float
+        The wheel angle used (rad).
+    """
+
+    started: bool
+    transition: np.ndarray
+    noise: np.ndarray
+    prior_state: np.ndarray
+    prior_covariance: np.ndarray
+    state: np.ndarray
+    covariance: np.ndarray
+    wheel_angle: float

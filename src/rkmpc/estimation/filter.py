@@ -39,7 +39,7 @@ than ``max_gap`` without one restarts the pose from it (counted as a gap restart
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import replace
 
 import numpy as np
 from scipy.stats import chi2
@@ -47,49 +47,12 @@ from scipy.stats import chi2
 from rkmpc.core.angles import wrap_scalar
 from rkmpc.core.observation import Command, Observation
 from rkmpc.estimation.config import EstimatorConfig
-from rkmpc.estimation.diagnostics import EstimatorCounts, EstimatorDiagnostics
-from rkmpc.estimation.model import BIAS, N_STATES, SCALE, VX, VY, YAW, R, SingleTrackModel, X, Y
+from rkmpc.estimation.diagnostics import EstimatorCounts, EstimatorDiagnostics, FilterStep
+from rkmpc.estimation.model import BIAS, N_STATES, SCALE, VX, VY, YAW, R, SingleTrackModel, X, Y, slip_of
 from rkmpc.estimation.steering import SteeringModel, WheelAnglePropagator
 from rkmpc.vehicle.params import VehicleParams
 
-__all__ = ["FilterStep", "StateEstimator", "slip_of"]
-
-#: Speed (m/s) below which the slip angle's denominator is held.
-_SLIP_SPEED_FLOOR = 0.1
-
-
-def slip_of(vx: float, vy: float) -> float:
-    """Side-slip angle (rad) of body velocities ``vx, vy`` (m/s): ``atan(vy / max(|vx|, 0.1))``."""
-    return math.atan(vy / max(abs(vx), _SLIP_SPEED_FLOOR))
-
-
-@dataclass(frozen=True)
-class FilterStep:
-    """One update of the filter, for a smoother (copies).
-
-    Parameters
-    ----------
-    started : bool
-        The update (re)started the filter, or re-initialised part of its state: no Bayesian
-        link to the update before.
-    transition, noise : numpy.ndarray
-        Jacobian ``F`` and process noise ``Q`` of the prediction from the update before (8, 8).
-    prior_state, prior_covariance : numpy.ndarray
-        The prediction (8,), (8, 8).
-    state, covariance : numpy.ndarray
-        The estimate after the measurements (8,), (8, 8).
-    wheel_angle : float
-        The wheel angle used (rad).
-    """
-
-    started: bool
-    transition: np.ndarray
-    noise: np.ndarray
-    prior_state: np.ndarray
-    prior_covariance: np.ndarray
-    state: np.ndarray
-    covariance: np.ndarray
-    wheel_angle: float
+__all__ = ["StateEstimator"]
 
 
 class StateEstimator:

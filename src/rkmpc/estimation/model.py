@@ -31,12 +31,23 @@ import numpy as np
 from rkmpc.estimation.config import EstimatorConfig
 from rkmpc.vehicle.params import VehicleParams
 
-__all__ = ["N_STATES", "STATE_NAMES", "SingleTrackModel", "axle_cornering_stiffness"]
+__all__ = ["N_STATES", "STATE_NAMES", "SingleTrackModel", "axle_cornering_stiffness", "slip_of"]
 
 #: The estimator's state, in order.
 STATE_NAMES: tuple[str, ...] = ("x", "y", "yaw", "vx", "vy", "yaw_rate", "speed_scale", "gyro_bias")
 N_STATES = len(STATE_NAMES)
 X, Y, YAW, VX, VY, R, SCALE, BIAS = range(N_STATES)
+#: Speed (m/s) below which the slip angle's denominator is held.
+_SLIP_SPEED_FLOOR = 0.1
+
+
+def slip_of(vx: float, vy: float) -> float:
+    """Side-slip angle (rad) of body velocities ``vx, vy`` (m/s): ``atan(vy / max(|vx|, 0.1))``.
+
+    The angle of the velocity from the car's axis, on the side of the direction of travel (so
+    also for a car reversing); held finite near standstill.
+    """
+    return math.atan(vy / max(abs(vx), _SLIP_SPEED_FLOOR))
 
 
 def axle_cornering_stiffness(vehicle: VehicleParams) -> tuple[float, float]:

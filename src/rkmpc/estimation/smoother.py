@@ -18,9 +18,9 @@ import numpy as np
 from rkmpc.core.errors import ParameterError
 from rkmpc.core.observation import OBSERVATION_FIELDS, Command, Observation
 from rkmpc.estimation.config import EstimatorConfig
-from rkmpc.estimation.diagnostics import EstimatorDiagnostics
-from rkmpc.estimation.filter import FilterStep, StateEstimator, slip_of
-from rkmpc.estimation.model import N_STATES, VX, VY, YAW, R, X, Y
+from rkmpc.estimation.diagnostics import EstimatorDiagnostics, FilterStep
+from rkmpc.estimation.filter import StateEstimator
+from rkmpc.estimation.model import N_STATES, VX, VY, YAW, R, X, Y, slip_of
 from rkmpc.estimation.steering import SteeringModel
 from rkmpc.vehicle.params import VehicleParams
 
