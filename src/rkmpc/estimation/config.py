@@ -138,6 +138,32 @@ class EstimatorConfig:
         ):
             raise ParameterError(f"EstimatorConfig.understeer_gradient must be finite or None, got {k!r}")
 
+    def process_densities(self) -> tuple[float, ...]:
+        """The process noise densities in the order of the state (``x, y, yaw, vx, vy, r, k, b``)."""
+        return (
+            self.position_density,
+            self.position_density,
+            self.yaw_density,
+            self.acceleration_density,
+            self.lateral_velocity_density,
+            self.yaw_acceleration_density,
+            self.speed_scale_density,
+            self.gyro_bias_density,
+        )
+
+    def initial_stds(self) -> tuple[float, ...]:
+        """The initial standard deviations in the order of the estimator's state."""
+        return (
+            self.initial_position_std,
+            self.initial_position_std,
+            self.initial_yaw_std,
+            self.initial_speed_std,
+            self.initial_lateral_velocity_std,
+            self.initial_yaw_rate_std,
+            self.initial_speed_scale_std,
+            self.initial_gyro_bias_std,
+        )
+
     def describe(self) -> dict[str, Any]:
         """Every setting as a JSON-able dictionary."""
         return {f.name: getattr(self, f.name) for f in fields(self)}

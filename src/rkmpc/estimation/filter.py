@@ -4,9 +4,9 @@
 speed (noisy, mis-scaled) and the gyro (noisy, biased) on the single-track model of
 :mod:`rkmpc.estimation.model`, with the front wheel angle propagated from the commands sent
 through a :class:`~rkmpc.estimation.steering.SteeringModel`. Each :meth:`StateEstimator.update`
-predicts to the observation's time, then fuses, in this order, a new pose, the speed, the yaw
-rate and a measured slip angle (each only when finite), each as its own EKF update behind a
-chi-square gate.
+predicts to the observation's time, then fuses, in this order, a new pose, the wheel speed and
+the gyro (one update of the two), and a measured slip angle, each only when finite and each
+behind its own chi-square gate (:mod:`rkmpc.estimation.kalman` has the algebra).
 
 What each estimate rests on
 ---------------------------
@@ -48,11 +48,15 @@ from rkmpc.core.angles import wrap_scalar
 from rkmpc.core.observation import Command, Observation
 from rkmpc.estimation.config import EstimatorConfig
 from rkmpc.estimation.diagnostics import EstimatorCounts, EstimatorDiagnostics, FilterStep
+from rkmpc.estimation.kalman import apply, apply_one, cholesky2, cholesky3
 from rkmpc.estimation.model import BIAS, N_STATES, SCALE, VX, VY, YAW, R, SingleTrackModel, X, Y, slip_of
 from rkmpc.estimation.steering import SteeringModel, WheelAnglePropagator
 from rkmpc.vehicle.params import VehicleParams
 
 __all__ = ["StateEstimator"]
+
+#: Updates between two symmetrisations of the covariance.
+_SYMMETRISE_EVERY = 64
 
 
 class StateEstimator:
@@ -87,21 +91,16 @@ class StateEstimator:
         self._speed_var = cfg.speed_std**2
         self._gyro_var = cfg.yaw_rate_std**2
         self._slip_var = cfg.slip_std**2
-        stds = (
-            cfg.initial_position_std,
-            cfg.initial_position_std,
-            cfg.initial_yaw_std,
-            cfg.initial_speed_std,
-            cfg.initial_lateral_velocity_std,
-            cfg.initial_yaw_rate_std,
-            cfg.initial_speed_scale_std,
-            cfg.initial_gyro_bias_std,
-        )
-        self._p0 = [s * s for s in stds]
+        self._p0 = [s * s for s in cfg.initial_stds()]
         self._identity = np.eye(N_STATES)
         self._zeros = np.zeros((N_STATES, N_STATES))
-        # Measurement rows of the scalar sensors, filled in place: H = hi e_i + hj e_j.
-        self._rows = {sensor: np.zeros(N_STATES) for sensor in ("speed", "yaw_rate", "slip")}
+        # Measurement rows and transposed inverse Cholesky factors, filled in place each update:
+        # the wheel speed (k vx) and the gyro (r + b), the slip angle, the pose's 3x3 factor.
+        self._motion_rows = np.zeros((2, N_STATES))
+        self._motion_rows[1, R] = self._motion_rows[1, BIAS] = 1.0
+        self._motion_d = np.zeros((2, 2))
+        self._slip_row = np.zeros(N_STATES)
+        self._pose_d = np.zeros((3, 3))
         self.reset()
 
     def reset(self) -> None:
@@ -190,14 +189,12 @@ class StateEstimator:
             self._x_prior, self._P_prior = self._x, self._P
         self._fuse(observation, t)
         self._time = t
-        x, y, yaw, vx, vy, r, k, b = self._x.tolist()
-        if not math.isfinite(x + y + yaw + vx + vy + r + k + b):
+        if not math.isfinite(float(self._x.sum())):
             self._counts.restarts_diverged += 1
             self._initialised = False
             if not self._initialise(observation, t, delta):
                 return replace(observation, steer_angle=delta)
-            return self._estimate(t, delta)
-        return Observation(x, y, yaw, vx, r, slip_of(vx, vy), delta, t)
+        return self._estimate(t, delta)
 
     # ------------------------------------------------------------------ steps
 
@@ -216,18 +213,8 @@ class StateEstimator:
         lag = t - obs.pose_time if math.isfinite(obs.pose_time) else 0.0
         lag = min(max(lag, 0.0), self.config.max_latency)
         c, s = math.cos(obs.yaw), math.sin(obs.yaw)
-        self._x = np.array(
-            [
-                obs.x + lag * (vx * c - vy * s),
-                obs.y + lag * (vx * s + vy * c),
-                obs.yaw + lag * r,
-                vx,
-                vy,
-                r,
-                1.0,
-                0.0,
-            ]
-        )
+        x, y = obs.x + lag * (vx * c - vy * s), obs.y + lag * (vx * s + vy * c)
+        self._x = np.array((x, y, obs.yaw + lag * r, vx, vy, r, 1.0, 0.0))
         self._P = np.diag(self._p0)
         self._last_pose = (obs.x, obs.y, obs.yaw)
         self._last_pose_time = obs.pose_time if math.isfinite(obs.pose_time) else -math.inf
@@ -247,7 +234,11 @@ class StateEstimator:
         self._x = self._x_prior = np.array(model.transition(self._x.tolist(), dt, delta))
         F = model.F
         Q = model.process_noise(dt)
-        self._P = self._P_prior = F @ self._P @ F.T + Q
+        P = F.dot(self._P).dot(F.T) + Q
+        if self._counts.updates % _SYMMETRISE_EVERY == 0:
+            # F P F^T is symmetric up to rounding only (the updates are exactly symmetric).
+            P = (P + P.T) * 0.5
+        self._P = self._P_prior = P
         self._F, self._Q = F, Q
 
     def _fuse(self, obs: Observation, t: float) -> None:
@@ -270,17 +261,11 @@ class StateEstimator:
             else:
                 self._last_pose = (px, py, pyaw)
                 self._new_pose(px, py, pyaw, 0.0, t)
-        if math.isfinite(obs.speed):
-            k, vx = float(self._x[SCALE]), float(self._x[VX])
-            self._scalar("speed", obs.speed - k * vx, VX, k, SCALE, vx, self._speed_var)
-        if math.isfinite(obs.yaw_rate):
-            gyro = float(self._x[R]) + float(self._x[BIAS])
-            self._scalar("yaw_rate", obs.yaw_rate - gyro, R, 1.0, BIAS, 1.0, self._gyro_var)
+        if math.isfinite(obs.speed) or math.isfinite(obs.yaw_rate):
+            self._motion_update(obs.speed, obs.yaw_rate)
         vx, vy = float(self._x[VX]), float(self._x[VY])
         if math.isfinite(obs.slip_angle) and vx > self.config.min_slip_speed:
-            norm = vx * vx + vy * vy
-            innovation = wrap_scalar(obs.slip_angle - math.atan2(vy, vx))
-            self._scalar("slip", innovation, VY, vx / norm, VX, -vy / norm, self._slip_var)
+            self._slip_update(wrap_scalar(obs.slip_angle - math.atan2(vy, vx)), vx, vy)
 
     def _new_pose(self, px: float, py: float, pyaw: float, lag: float, t: float) -> None:
         """Fuse a new pose; after more than ``max_gap`` without one, start the pose afresh from it."""
@@ -297,52 +282,88 @@ class StateEstimator:
         if self._pose_update(px, py, pyaw, lag):
             self._pose_used_at = t - lag
 
-    def _scalar(
-        self, sensor: str, innovation: float, i: int, hi: float, j: int, hj: float, var: float
-    ) -> None:
-        """One scalar EKF update with ``H = hi e_i + hj e_j`` behind the 1-dof gate."""
-        row = self._rows[sensor]
-        row[i] = hi
-        row[j] = hj
-        pht = self._P @ row
-        s = hi * float(pht[i]) + hj * float(pht[j]) + var
-        if innovation * innovation > self._gate1 * s:
-            self._rejected(sensor, ((i, innovation / hi),))
+    def _motion_update(self, speed: float, yaw_rate: float) -> None:
+        """The wheel speed ``k vx`` and the gyro ``r + b`` (NaN: not measured), each behind its 1-dof gate.
+
+        Both accepted: one 2-row update; one: a scalar update.
+        """
+        _, _, _, vx, _, r, k, b = self._x.tolist()
+        H = self._motion_rows
+        H[0, VX], H[0, SCALE] = k, vx
+        pht = self._P.dot(H.T)
+        (s00, s01), (_, s11) = H.dot(pht).tolist()
+        s00 += self._speed_var
+        s11 += self._gyro_var
+        n0, n1 = speed - k * vx, yaw_rate - r - b
+        gate = self._gate1
+        take0 = n0 * n0 <= gate * s00  # False for NaN: not measured
+        take1 = n1 * n1 <= gate * s11
+        factor = cholesky2(s00, s01, s11)
+        if factor is None:
+            self._x = self._x * math.nan  # a covariance no longer positive: restart the filter
             return
-        self._streak[sensor] = 0
-        self._counts.used[sensor] += 1
-        gain = pht * (1.0 / s)
-        self._x = self._x + gain * innovation
-        self._P = self._P - np.multiply.outer(gain, pht)
+        if take0 and take1:
+            c00, c10, c11 = factor
+            u0 = n0 / c00
+            inverse_t = self._motion_d
+            inverse_t[0, 0], inverse_t[0, 1], inverse_t[1, 1] = 1.0 / c00, -c10 / (c00 * c11), 1.0 / c11
+            self._x, self._P = apply(self._x, self._P, pht, inverse_t, (u0, (n1 - c10 * u0) / c11))
+        elif take0:
+            self._x, self._P = apply_one(self._x, self._P, pht[:, 0], s00, n0)
+        elif take1:
+            self._x, self._P = apply_one(self._x, self._P, pht[:, 1], s11, n1)
+        for sensor, taken, nu, shift in (
+            ("speed", take0, n0, (VX, n0 / max(k, 1e-3))),
+            ("yaw_rate", take1, n1, (R, n1)),
+        ):
+            if taken:
+                self._streak[sensor] = 0
+                self._counts.used[sensor] += 1
+            elif math.isfinite(nu):
+                self._rejected(sensor, (shift,))
+
+    def _slip_update(self, innovation: float, vx: float, vy: float) -> None:
+        """A measured slip angle ``atan2(vy, vx)``, behind its 1-dof gate."""
+        norm = vx * vx + vy * vy
+        h = self._slip_row
+        h[VY], h[VX] = vx / norm, -vy / norm
+        pht = self._P.dot(h)
+        s = vx / norm * float(pht[VY]) - vy / norm * float(pht[VX]) + self._slip_var
+        if innovation * innovation > self._gate1 * s:
+            self._rejected("slip", ((VY, innovation * norm / vx),))
+            return
+        self._streak["slip"] = 0
+        self._counts.used["slip"] += 1
+        self._x, self._P = apply_one(self._x, self._P, pht, s, innovation)
 
     def _pose_update(self, px: float, py: float, pyaw: float, lag: float) -> bool:
         """The 3-dof pose update behind the 3-dof gate (False: rejected); the noise grows with the lag."""
         h, H = self.model.pose(self._x.tolist(), lag)
-        nu = (px - h[0], py - h[1], wrap_scalar(pyaw - h[2]))
-        P = self._P
-        PHt = P @ H.T
-        S = H @ PHt
-        (a, b, c), (_, d, e), (_, _, f) = S.tolist()
+        n0, n1, n2 = px - h[0], py - h[1], wrap_scalar(pyaw - h[2])
+        pht = self._P.dot(H.T)
+        (a, b, c), (_, d, e), (_, _, f) = H.dot(pht).tolist()
         var, dens = self._pose_var, self._pose_density
-        a += var[0] + lag * dens[0]
-        d += var[1] + lag * dens[1]
-        f += var[2] + lag * dens[2]
-        # The inverse of the symmetric 3x3 innovation covariance, by cofactors.
-        ia, ib, ic = d * f - e * e, c * e - b * f, b * e - c * d
-        scale = 1.0 / (a * ia + b * ib + c * ic)
-        ia, ib, ic = ia * scale, ib * scale, ic * scale
-        idd, ie, iff = (a * f - c * c) * scale, (b * c - a * e) * scale, (a * d - b * b) * scale
-        n0, n1, n2 = nu
-        w0 = ia * n0 + ib * n1 + ic * n2
-        w1 = ib * n0 + idd * n1 + ie * n2
-        w2 = ic * n0 + ie * n1 + iff * n2
-        if not n0 * w0 + n1 * w1 + n2 * w2 <= self._gate3:
+        factor = cholesky3(
+            a + var[0] + lag * dens[0], b, c, d + var[1] + lag * dens[1], e, f + var[2] + lag * dens[2]
+        )
+        if factor is None:
+            self._x = self._x * math.nan  # a covariance no longer positive: restart the filter
+            return False
+        c00, c10, c20, c11, c21, c22 = factor
+        u0 = n0 / c00
+        u1 = (n1 - c10 * u0) / c11
+        u2 = (n2 - c20 * u0 - c21 * u1) / c22
+        if not u0 * u0 + u1 * u1 + u2 * u2 <= self._gate3:
             return self._rejected("pose", ((X, n0), (Y, n1), (YAW, n2)))
         self._streak["pose"] = 0
         self._counts.used["pose"] += 1
-        self._x = self._x + PHt @ np.array((w0, w1, w2))
-        P = P - PHt @ np.array(((ia, ib, ic), (ib, idd, ie), (ic, ie, iff))) @ PHt.T
-        self._P = (P + P.T) * 0.5
+        # D = C^-1 (lower triangular), stored transposed.
+        d00, d11, d22 = 1.0 / c00, 1.0 / c11, 1.0 / c22
+        d10 = -c10 * d00 * d11
+        inverse_t = self._pose_d
+        inverse_t[0, 0], inverse_t[0, 1], inverse_t[0, 2] = d00, d10, -(c20 * d00 + c21 * d10) * d22
+        inverse_t[1, 1], inverse_t[1, 2], inverse_t[2, 2] = d11, -c21 * d11 * d22, d22
+        self._x, self._P = apply(self._x, self._P, pht, inverse_t, (u0, u1, u2))
         return True
 
     # ------------------------------------------------------------------ rejections

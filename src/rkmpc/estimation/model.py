@@ -86,18 +86,8 @@ class SingleTrackModel:
         self.rear_compliance = vehicle.mass * vehicle.lf / (length * c_r)
         self.tau_r = config.yaw_rate_time_constant
         self.tau_y = config.lateral_time_constant
-        density = (
-            config.position_density,
-            config.position_density,
-            config.yaw_density,
-            config.acceleration_density,
-            config.lateral_velocity_density,
-            config.yaw_acceleration_density,
-            config.speed_scale_density,
-            config.gyro_bias_density,
-        )
         #: Process noise per second: ``Q = diag(q) h`` over a step of ``h`` seconds.
-        self.q = np.array([d * d for d in density])
+        self.q = np.array([d * d for d in config.process_densities()])
         self._q_matrix = np.diag(self.q)
         self.F = np.eye(N_STATES)
         self._pose_now = np.eye(3, N_STATES)
