@@ -164,6 +164,19 @@ def test_a_gap_inside_an_episode_starts_a_new_one():
     assert out.metadata[ESTIMATION_KEY]["recordings"] == 2
 
 
+def test_no_transition_spans_a_reinitialisation_of_the_filter():
+    data, _ = dataset(120)
+    obs, next_obs = data.obs.copy(), data.next_obs.copy()
+    obs[60:, 1] += 1.5  # the localiser relocalised 1.5 m aside and stays there
+    next_obs[59:, 1] += 1.5
+    moved = TransitionDataset(obs=obs, command=data.command, next_obs=next_obs, dt=DT, episode=data.episode)
+    out = estimate_dataset(moved, CAR, config=EstimatorConfig(control_period=DT, max_rejections=5))
+    assert out.metadata[ESTIMATION_KEY]["segments"] == 2 and np.unique(out.episode).size == 2
+    assert len(out) == len(moved) - 1  # the transition across the jump of the estimate is no label
+    steps = np.hypot(*(out.next_obs[:, :2] - out.obs[:, :2]).T)
+    assert steps.max() < 0.2  # 2.5 m/s over 0.05 s: 0.125 m
+
+
 def test_the_settings_must_have_the_data_period():
     data, _ = dataset(20)
     with pytest.raises(ParameterError, match="control_period"):

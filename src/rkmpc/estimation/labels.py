@@ -96,8 +96,9 @@ def estimate_dataset(
     Returns
     -------
     TransitionDataset
-        The same commands; the estimated observations, one episode per recording (the transitions
-        before a recording's first estimate are dropped); an estimated speed below 0 is held at 0.
+        The same commands; the estimated observations, one episode per stretch the filter ran
+        through (a transition before a recording's first estimate, or across a restart or
+        re-initialisation of the filter, is dropped); an estimated speed below 0 is held at 0.
         Metadata: the data's, plus ``"estimation"``: method, steering model, settings, the filter's
         counts summed over the recordings, the sensor scale and bias per recording.
 
@@ -136,20 +137,25 @@ def estimate_dataset(
         )
         runs.append(result)
         estimate = result.observations.copy()
-        keep = result.valid[:-1] & result.valid[1:]
         negative = estimate[:, _SPEED] < 0.0
         clipped += int(np.count_nonzero(negative))
         estimate[negative, _SPEED] = 0.0
-        if not keep.any():
-            continue
-        obs.append(estimate[:-1][keep])
-        next_obs.append(estimate[1:][keep])
-        command.append(commands[keep])
-        episode.append(np.full(int(keep.sum()), len(episode), dtype=np.int64))
+        # A transition needs an estimate at both ends from the same stretch of the filter (where
+        # it restarted or re-initialised, the estimate jumps: no label, and a new episode).
+        keep = result.valid[:-1] & result.valid[1:] & ~result.segment_starts[1:]
+        for part in np.split(np.flatnonzero(keep), np.flatnonzero(np.diff(np.flatnonzero(keep)) != 1) + 1):
+            if part.size == 0:
+                continue
+            obs.append(estimate[part])
+            next_obs.append(estimate[part + 1])
+            command.append(commands[part])
+            episode.append(np.full(part.size, len(episode), dtype=np.int64))
     if not obs:
         raise ParameterError("estimate_dataset: no transition has an estimate (no finite pose in the data)")
     metadata = dict(data.metadata)
-    metadata[ESTIMATION_KEY] = _describe(runs, steer_model, cfg, causal, clipped, len(data))
+    metadata[ESTIMATION_KEY] = _describe(
+        runs, steer_model, cfg, causal, clipped, (len(data), sum(map(len, obs)))
+    )
     out = TransitionDataset(
         obs=np.concatenate(obs),
         command=np.concatenate(command),
@@ -167,9 +173,10 @@ def _describe(
     config: EstimatorConfig,
     causal: bool,
     clipped: int,
-    n_in: int,
+    counts_in_out: tuple[int, int],
 ) -> dict[str, Any]:
     """The ``"estimation"`` metadata: what was done, with the filter's counts."""
+    n_in, n_out = counts_in_out
     counts = {name: 0 for name in _SUMMED}
     for run in runs:
         record = run.diagnostics.as_dict(prefix="")
@@ -182,6 +189,7 @@ def _describe(
         "recordings": len(runs),
         "segments": sum(run.segments for run in runs),
         "transitions_in": n_in,
+        "transitions_out": n_out,
         "speeds_held_at_zero": clipped,
         "counts": counts,
         "speed_scale": [run.diagnostics.speed_scale for run in runs],

@@ -45,8 +45,9 @@ class SmoothedSequence:
         pose, speed ``vx``, yaw rate, slip angle and wheel angle, shape (n, 7).
     valid : numpy.ndarray
         Whether a sample has an estimate (after the first finite pose), shape (n,).
-    segments : int
-        Stretches smoothed independently (the filter restarted or re-initialised between them).
+    segment_starts : numpy.ndarray
+        Whether a sample starts a stretch smoothed on its own (the filter started, restarted or
+        re-initialised part of its state there: the estimate may jump), shape (n,).
     smoothed : bool
         True for the RTS estimates, False for the causal filter's.
     diagnostics : EstimatorDiagnostics
@@ -58,9 +59,14 @@ class SmoothedSequence:
     covariances: np.ndarray
     observations: np.ndarray
     valid: np.ndarray
-    segments: int
+    segment_starts: np.ndarray
     smoothed: bool
     diagnostics: EstimatorDiagnostics
+
+    @property
+    def segments(self) -> int:
+        """Stretches smoothed on their own."""
+        return int(np.count_nonzero(self.segment_starts))
 
 
 def rts(
@@ -202,7 +208,7 @@ def smooth_sequence(
         covariances=covs,
         observations=_as_observations(states, wheel),
         valid=valid,
-        segments=len(starts),
+        segment_starts=np.isin(np.arange(n), starts),
         smoothed=not causal,
         diagnostics=estimator.diagnostics(),
     )
