@@ -189,11 +189,13 @@ class StateEstimator:
             self._x_prior, self._P_prior = self._x, self._P
         self._fuse(observation, t)
         self._time = t
-        if not math.isfinite(float(self._x.sum())):
-            self._counts.restarts_diverged += 1
-            self._initialised = False
-            if not self._initialise(observation, t, delta):
-                return replace(observation, steer_angle=delta)
+        x, y, yaw, vx, vy, r, k, b = self._x.tolist()
+        if math.isfinite(x + y + yaw + vx + vy + r + k + b):
+            return Observation(x, y, yaw, vx, r, slip_of(vx, vy), delta, t)
+        self._counts.restarts_diverged += 1
+        self._initialised = False
+        if not self._initialise(observation, t, delta):
+            return replace(observation, steer_angle=delta)
         return self._estimate(t, delta)
 
     # ------------------------------------------------------------------ steps

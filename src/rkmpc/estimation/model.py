@@ -89,6 +89,7 @@ class SingleTrackModel:
         #: Process noise per second: ``Q = diag(q) h`` over a step of ``h`` seconds.
         self.q = np.array([d * d for d in config.process_densities()])
         self._q_matrix = np.diag(self.q)
+        self._q_step, self._q_last = 0.0, self._q_matrix * 0.0
         self.F = np.eye(N_STATES)
         self._pose_now = np.eye(3, N_STATES)
         self._pose_lagged = np.eye(3, N_STATES)
@@ -106,8 +107,10 @@ class SingleTrackModel:
         return self.lr - self.rear_compliance * vx * vx
 
     def process_noise(self, h: float) -> np.ndarray:
-        """``Q`` (8, 8) of a step of ``h`` seconds: ``diag(q) h``."""
-        return self._q_matrix * h
+        """``Q`` (8, 8) of a step of ``h`` seconds: ``diag(q) h`` (the last one kept: steps repeat)."""
+        if h != self._q_step:
+            self._q_step, self._q_last = h, self._q_matrix * h
+        return self._q_last
 
     def transition(self, state: list[float], h: float, delta: float) -> list[float]:
         """The state ``h`` seconds on (a new list); fills :attr:`F`, its Jacobian."""
