@@ -72,6 +72,7 @@ test-all: test test-slow
 
 bench: $(VENV)/.installed
 	$(BIN)/python benchmarks/bench_step.py --out runs/bench/step_times.json
+	$(BIN)/python benchmarks/bench_estimator.py --out runs/bench/estimator.json
 
 # Where the time of one RKMPC step goes, stage by stage.
 bench-breakdown: $(VENV)/.installed

@@ -21,6 +21,7 @@ LAYERS = (
     "track",
     "vehicle",
     "learning",
+    "estimation",
     "control",
     "config",
     "sim",

@@ -1,4 +1,4 @@
-"""CommandGuard (bounds, steering-rate limit, fall-back plan) and WheelAngleEstimate (servo model)."""
+"""CommandGuard (bounds, steering-rate limit, fall-back plan) and the speed floor."""
 
 from __future__ import annotations
 
@@ -8,9 +8,8 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 
-from rkmpc.control.guard import CommandGuard, SpeedFloor, WheelAngleEstimate
+from rkmpc.control.guard import CommandGuard, SpeedFloor
 from rkmpc.core.errors import ParameterError
-from rkmpc.learning.servo_fit import lag_delay_weights
 from rkmpc.vehicle.params import f1tenth
 
 DT = 0.05
@@ -159,69 +158,6 @@ def test_reset_forgets_plan_and_previous_command(guard):
     assert out[1] == pytest.approx(0.4)
 
 
-# ---------------------------------------------------------------------------- WheelAngleEstimate
-
-
-def test_wheel_angle_estimate_returns_a_finite_measurement():
-    est = WheelAngleEstimate(0.158, DT)
-    assert est(0.123, np.array([1.0, -0.3])) == 0.123
-    assert est(-0.2, None) == -0.2
-
-
-def test_wheel_angle_estimate_filter_constant():
-    est = WheelAngleEstimate(0.2, 0.05)
-    assert est.a == pytest.approx(math.exp(-0.25))
-
-
-def test_wheel_angle_estimate_is_a_first_order_lag_of_the_commands():
-    tau = 0.158
-    est = WheelAngleEstimate(tau, DT)
-    a = math.exp(-DT / tau)
-    rng = np.random.default_rng(7)
-    commands = np.column_stack([np.full(30, 2.0), rng.uniform(-0.4, 0.4, 30)])
-    # Starts at the previous command.
-    expected = commands[0, 1]
-    assert est(math.nan, commands[0]) == pytest.approx(expected)
-    for cmd in commands[1:]:
-        expected = a * expected + (1.0 - a) * cmd[1]
-        assert est(math.nan, cmd) == pytest.approx(expected, rel=1e-12, abs=1e-15)
-
-
-def test_wheel_angle_estimate_converges_to_a_held_command():
-    est = WheelAngleEstimate(0.1, DT)
-    est(math.nan, np.array([1.0, 0.0]))
-    cmd = np.array([1.0, 0.3])
-    values = [est(math.nan, cmd) for _ in range(60)]
-    assert np.all(np.diff(values) > 0)
-    assert values[0] == pytest.approx((1 - math.exp(-0.5)) * 0.3)
-    assert values[-1] == pytest.approx(0.3, abs=1e-9)
-
-
-def test_wheel_angle_estimate_without_commands_is_zero():
-    est = WheelAngleEstimate(0.158, DT)
-    assert est(math.nan, None) == 0.0
-
-
-def test_wheel_angle_estimate_reset_restarts_at_the_previous_command():
-    est = WheelAngleEstimate(0.158, DT)
-    est(math.nan, np.array([1.0, 0.3]))
-    lagged = est(math.nan, np.array([1.0, -0.3]))
-    assert lagged != pytest.approx(-0.3)
-    est.reset()
-    assert est(math.nan, np.array([1.0, -0.3])) == pytest.approx(-0.3)
-
-
-def test_wheel_angle_estimate_measurement_does_not_disturb_the_model():
-    tau = 0.158
-    a = math.exp(-DT / tau)
-    est = WheelAngleEstimate(tau, DT)
-    est(math.nan, np.array([1.0, 0.2]))
-    assert est(0.05, np.array([1.0, -0.1])) == 0.05
-    # With the measurement missing again the model continues from its own last estimate.
-    assert est(math.inf, np.array([1.0, -0.1])) == pytest.approx(a * 0.2 + (1 - a) * -0.1)
-    assert_allclose(est(math.nan, np.array([1.0, -0.1])), a * (a * 0.2 + (1 - a) * -0.1) + (1 - a) * -0.1)
-
-
 # ---------------------------------------------------------------------------- speed floor
 
 
@@ -266,29 +202,3 @@ def test_speed_floor_over_a_horizon_and_a_disabled_floor(vehicle):
     assert_allclose(guard.speed_floor(np.array([1.0, 2.0, 4.0])), [0.25, 0.5, 1.0])
     off = CommandGuard(vehicle, DT, HORIZON, SpeedFloor(fraction=0.0))
     assert off.apply(np.array([0.0, 0.0]), 2.0)[0] == vehicle.drive.min_speed
-
-
-@pytest.mark.parametrize("delay", [0.02, 0.05, 0.12])
-def test_wheel_angle_estimate_with_a_delay_is_the_delayed_lag_of_the_commands(delay):
-    tau = 0.1
-    est = WheelAngleEstimate(tau, DT, delay)
-    a, w = lag_delay_weights(tau, delay, DT)
-    assert est.a == a
-    np.testing.assert_array_equal(est.weights, w)
-    rng = np.random.default_rng(3)
-    steer = rng.uniform(-0.4, 0.4, 40)
-    # Before the first command every past command is taken equal to it.
-    assert est(math.nan, np.array([1.0, steer[0]])) == pytest.approx(steer[0])
-    assert_array_equal(est.past_commands, np.full(len(w), steer[0]))
-    sent = [steer[0]] * len(w)
-    expected = steer[0]
-    for u in steer[1:]:
-        sent.insert(0, u)  # sent[j] = u_{k-1-j} as of this call
-        expected = a * expected + float(np.dot(w, sent[: len(w)]))
-        assert est(math.nan, np.array([1.0, u])) == pytest.approx(expected, rel=1e-12, abs=1e-15)
-        assert_array_equal(est.past_commands, sent[: len(w)])
-    # A measurement wins, and the commands are still recorded.
-    assert est(0.2, np.array([1.0, 0.3])) == 0.2
-    assert est.past_commands[0] == 0.3
-    est.reset()
-    assert_array_equal(est.past_commands, np.zeros(len(w)))

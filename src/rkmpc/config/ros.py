@@ -194,7 +194,8 @@ class RosSettings:
         simulated car's lock-step mode); a wall-clock watchdog still stops the car.
     steering_estimate : bool
         Without a steering topic, estimate the wheel angle from the commands sent (the vehicle's
-        first-order servo), for controllers that use it; NaN otherwise.
+        nominal servo, lag and rate limit: :class:`rkmpc.estimation.steering.SteeringModel`), for
+        controllers that use it; NaN otherwise.
     topics, frames, odometry, latency, safety, record
         The sections below.
     """

@@ -15,10 +15,9 @@ import numpy as np
 
 from rkmpc.core.errors import ParameterError
 from rkmpc.core.validation import require_nonnegative
-from rkmpc.learning.servo_fit import lag_delay_weights
 from rkmpc.vehicle.params import VehicleParams
 
-__all__ = ["CommandGuard", "SpeedFloor", "WheelAngleEstimate"]
+__all__ = ["CommandGuard", "SpeedFloor"]
 
 
 @dataclass(frozen=True)
@@ -143,67 +142,3 @@ class CommandGuard:
         applied = np.array([min(max(speed, v_lo), hi[0]), min(max(steer, lo[1]), hi[1])])
         self.previous = applied
         return applied
-
-
-class WheelAngleEstimate:
-    """The front wheel angle: measured when available, else a (delayed) first-order servo model.
-
-    The servo model is the exact discretisation of a lag behind a pure delay under held
-    commands (:func:`rkmpc.learning.servo_fit.lag_delay_weights`):
-    ``delta_{k+1} = a delta_k + sum_j w_j u_{k-j}``.
-
-    Parameters
-    ----------
-    time_constant : float
-        Servo time constant (s).
-    dt : float
-        Control period (s).
-    delay : float
-        Pure delay of the servo (s), 0 by default.
-
-    Attributes
-    ----------
-    a : float
-        ``exp(-dt / time_constant)``.
-    weights : numpy.ndarray
-        ``w_j`` of the commands ``u_k, u_{k-1}, ...`` (``[1 - a]`` without delay).
-    """
-
-    def __init__(self, time_constant: float, dt: float, delay: float = 0.0) -> None:
-        self.a, self.weights = lag_delay_weights(time_constant, delay, dt)
-        self.reset()
-
-    def reset(self) -> None:
-        """Forget the estimate and the commands."""
-        self._estimate: float | None = None
-        self._past = np.zeros(len(self.weights))
-        self._seen = False
-
-    @property
-    def past_commands(self) -> np.ndarray:
-        """Steering commands ``[u_{k-1}, u_{k-2}, ...]`` (rad) as of the last call, shape (len(weights),).
-
-        Before the first command, all equal to the first one seen (or zero).
-        """
-        return self._past.copy()
-
-    def __call__(self, measured: float, previous_command: np.ndarray | None) -> float:
-        """Wheel angle (rad): ``measured`` if finite, else the servo's response to the commands so far.
-
-        Call once per control step with the command applied at the step before.
-        """
-        if previous_command is not None:
-            steer = float(previous_command[1])
-            if self._seen:
-                self._past[1:] = self._past[:-1]
-                self._past[0] = steer
-            else:
-                self._past[:] = steer
-                self._seen = True
-        if math.isfinite(measured):
-            return measured
-        if self._estimate is None or previous_command is None:
-            self._estimate = 0.0 if previous_command is None else float(previous_command[1])
-        else:
-            self._estimate = self.a * self._estimate + float(self.weights @ self._past)
-        return self._estimate

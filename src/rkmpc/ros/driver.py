@@ -19,13 +19,11 @@ from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 
-import numpy as np
-
 from rkmpc.config.ros import RosSettings
 from rkmpc.control.base import Controller
-from rkmpc.control.guard import WheelAngleEstimate
 from rkmpc.core.angles import wrap_scalar
 from rkmpc.core.observation import Command, Observation
+from rkmpc.estimation.steering import SteeringModel, WheelAnglePropagator
 from rkmpc.ros.latency import CommandHistory, propagate
 from rkmpc.ros.safety import SafetyMonitor, stop_command
 from rkmpc.track.reference import Reference
@@ -119,7 +117,7 @@ class CarDriver:
         latency = config.latency
         self.history = CommandHistory(keep=latency.odometry + latency.actuation + 1.0)
         self.wheel = (
-            WheelAngleEstimate(vehicle.steering.time_constant, config.period)
+            WheelAnglePropagator(SteeringModel.nominal(vehicle), config.period)
             if config.steering_estimate and config.topics.steering is None
             else None
         )
@@ -263,8 +261,8 @@ class CarDriver:
         if self.config.topics.steering is not None:
             return replace(observation, steer_angle=self._steer)
         if self.wheel is not None:
-            previous = None if self._last is None else np.array([self._last.speed, self._last.steer])
-            return replace(observation, steer_angle=self.wheel(math.nan, previous))
+            previous = None if self._last is None else self._last.steer
+            return replace(observation, steer_angle=self.wheel.step(previous))
         return observation
 
     def _compensated(self, observation: Observation, time: float) -> Observation:

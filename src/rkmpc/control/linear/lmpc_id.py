@@ -43,11 +43,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from rkmpc.control.guard import WheelAngleEstimate
 from rkmpc.control.linear.lmpc import LinearMPC, LMPCConfig
 from rkmpc.control.linear.problem import condense
 from rkmpc.core.angles import wrap_scalar
 from rkmpc.core.observation import Observation
+from rkmpc.estimation.steering import SteeringModel, WheelAnglePropagator
 from rkmpc.learning.identification import IdentifiedModel, effective_wheelbase, steady_state_steer
 from rkmpc.learning.servo_fit import delay_periods
 from rkmpc.vehicle.params import VehicleParams
@@ -96,7 +96,8 @@ class IdentifiedLMPC(LinearMPC):
     ) -> None:
         dt = (config if config is not None else LMPCConfig()).dt
         self.model = model
-        self._wheel = WheelAngleEstimate(model.servo_time_constant, dt, model.servo_delay)
+        servo = SteeringModel.from_identified(model, vehicle.steering.max_angle)
+        self._wheel = WheelAnglePropagator(servo, dt)
         self._a = self._wheel.a
         self._w = self._wheel.weights
         self._shift = delay_periods(model.servo_delay, dt)
@@ -140,7 +141,8 @@ class IdentifiedLMPC(LinearMPC):
         wheel_ref = self._wheel_reference(ref)
         delta = wheel_ref[:n]
         theta = ref.theta[:n]
-        wheel = self._wheel(observation.steer_angle, self._guard.previous)
+        previous = self._guard.previous
+        wheel = self._wheel.step(None if previous is None else float(previous[1]), observation.steer_angle)
         # States: pose deviations, the wheel angle, the commands u_{k-1}, ..., u_{k-p} still on
         # their way, each as its deviation from the wheel reference of the step it reaches the
         # wheel (m - j), the coordinates the input deviations of the QP have too, and 1.

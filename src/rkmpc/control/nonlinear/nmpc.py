@@ -35,13 +35,13 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from rkmpc.control.guard import WheelAngleEstimate
 from rkmpc.control.nonlinear.models import dynamic_ode, kinematic_ode, rk4_map
 from rkmpc.control.nonlinear.nlp import SOLVERS, NMPCConfig, TrackingNLP
 from rkmpc.control.tracking import Solution, TrackingController
 from rkmpc.core.angles import branch_shift, wrap_scalar
 from rkmpc.core.errors import ParameterError, raise_if_interrupted
 from rkmpc.core.observation import Observation
+from rkmpc.estimation.steering import SteeringModel, WheelAnglePropagator
 from rkmpc.vehicle.params import VehicleParams
 
 if TYPE_CHECKING:
@@ -281,7 +281,7 @@ class DynamicNMPC(KinematicNMPC):
         self.min_speed = float(vehicle.blend_speed_high if min_speed is None else min_speed)
         if not (math.isfinite(self.min_speed) and self.min_speed > 0):
             raise ParameterError(f"DynamicNMPC.min_speed must be > 0, got {self.min_speed}")
-        self._wheel = WheelAngleEstimate(vehicle.steering.time_constant, (config or NMPCConfig()).dt)
+        self._wheel = WheelAnglePropagator(SteeringModel.nominal(vehicle), (config or NMPCConfig()).dt)
         super().__init__(reference, vehicle, config)
 
     def _ode(self) -> Any:
@@ -297,7 +297,8 @@ class DynamicNMPC(KinematicNMPC):
 
     def _initial_state(self, observation: Observation, yaw: float) -> np.ndarray:
         length = self.vehicle.wheelbase
-        delta = self._wheel(observation.steer_angle, self._guard.previous)
+        previous = self._guard.previous
+        delta = self._wheel.step(None if previous is None else float(previous[1]), observation.steer_angle)
         if math.isfinite(observation.slip_angle):
             beta = observation.slip_angle
         else:
