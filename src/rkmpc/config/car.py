@@ -20,6 +20,7 @@ from rkmpc.control.settings import ControllerSettings
 from rkmpc.core.errors import ParameterError
 from rkmpc.core.jsonutil import to_json_ready
 from rkmpc.core.validation import is_integer, is_positive_number
+from rkmpc.estimation.config import EstimatorConfig
 from rkmpc.track.speed_profile import SpeedLimits
 from rkmpc.vehicle.params import VehicleParams
 from rkmpc.vehicle.registry import PLANTS
@@ -108,6 +109,10 @@ class CarConfig:
         What the simulated car's sensors measure, and how (:mod:`rkmpc.vehicle.sensors`):
         ``ideal`` (every field true and current) or a real car's profile (``f1tenth-real``: no
         wheel angle, no side-slip, a late, noisy localiser).
+    estimator : EstimatorConfig
+        The state estimator that turns what a car's sensors measure into the state the controllers
+        need (:mod:`rkmpc.estimation`), used where the sensors are not ideal; its control period is
+        the run's.
     ros : RosSettings
         How ``rkmpc node`` talks to the car.
     source : str or None
@@ -124,6 +129,7 @@ class CarConfig:
     controllers: ControllerSettings = field(default_factory=ControllerSettings)
     training: TrainingSettings = field(default_factory=TrainingSettings)
     sensors: SensorProfile = field(default_factory=lambda: get_sensor_profile("ideal"))
+    estimator: EstimatorConfig = field(default_factory=EstimatorConfig)
     ros: RosSettings = field(default_factory=RosSettings)
     source: str | None = None
     sha256: str | None = None
@@ -136,6 +142,7 @@ class CarConfig:
             ("controllers", ControllerSettings),
             ("training", TrainingSettings),
             ("sensors", SensorProfile),
+            ("estimator", EstimatorConfig),
             ("ros", RosSettings),
         )
         for name, kind in checks:
@@ -185,5 +192,6 @@ class CarConfig:
             "controllers": self.controllers.to_json(),
             "training": asdict(self.training),
             "sensors": self.sensors.describe(),
+            "estimator": asdict(self.estimator),
             "ros": to_json_ready(asdict(self.ros)),
         }

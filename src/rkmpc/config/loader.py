@@ -27,6 +27,8 @@ A user's car file names the preset it builds on and overrides what it gives::
     profile = "f1tenth-real"    # "ideal" (default), "no-steer", "f1tenth-real"
     [sensors.localiser]
     latency = 0.05
+    [estimator]                 # EstimatorConfig: the state estimator used with such sensors
+    position_std = 0.1
 
     [ros]                       # RosSettings: rkmpc node
     rate_hz = 20.0
@@ -59,13 +61,14 @@ from rkmpc.control.settings import ControllerSettings
 from rkmpc.core.errors import InputFileError, ParameterError
 from rkmpc.core.registry import Registry
 from rkmpc.core.settings import build_dataclass, check_keys, check_value
+from rkmpc.estimation.config import EstimatorConfig
 from rkmpc.track.speed_profile import SpeedLimits
 from rkmpc.vehicle.params import PARAMS, VehicleParams
 from rkmpc.vehicle.sensors import SensorProfile, get_sensor_profile
 
 __all__ = ["MAX_FILE_BYTES", "PRESETS", "load_car_config", "load_preset", "read_settings_file"]
 
-SECTIONS = ("vehicle", "plant", "limits", "controllers", "training", "sensors", "ros")
+SECTIONS = ("vehicle", "plant", "limits", "controllers", "training", "sensors", "estimator", "ros")
 #: The packaged presets by name: their file in ``rkmpc/config/presets``.
 PRESETS: Registry[str] = Registry("car preset", {"f1tenth": "f1tenth.toml", "fullsize": "fullsize.toml"})
 #: The largest settings file read (bytes): a car file is a few kilobytes.
@@ -209,6 +212,9 @@ def _build(data: Mapping[str, Any], path: Path, *, base: CarConfig | None, name:
                 TrainingSettings, sections["training"], path, "training.", base=defaults.training
             ),
             sensors=_sensors(sections["sensors"], defaults.sensors, path),
+            estimator=build_dataclass(
+                EstimatorConfig, sections["estimator"], path, "estimator.", base=defaults.estimator
+            ),
             ros=build_dataclass(RosSettings, sections["ros"], path, "ros.", base=defaults.ros),
         )
     except ParameterError as exc:

@@ -22,6 +22,7 @@ the tests check both agree).
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -128,6 +129,22 @@ class SteeringModel:
             rate_limit=None if model.servo_rate_limit is None else float(model.servo_rate_limit),
             source=f"identified ({model.servo_structure})",
         )
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> SteeringModel:
+        """The model back from :meth:`describe`'s record (a model file's metadata keeps it)."""
+        try:
+            max_angle = data["max_angle_rad"]
+            rate = data["rate_limit_rad_s"]
+            return cls(
+                time_constant=float(data["time_constant_s"]),
+                max_angle=math.inf if max_angle is None else float(max_angle),
+                delay=float(data["delay_s"]),
+                rate_limit=None if rate is None else float(rate),
+                source=str(data["source"]),
+            )
+        except (KeyError, TypeError, ValueError) as exc:
+            raise ParameterError(f"not a steering model record: {data!r} ({exc})") from None
 
     def describe(self) -> dict[str, Any]:
         """The parameters as a JSON-able dictionary (``max_angle`` and ``rate_limit`` None when absent)."""

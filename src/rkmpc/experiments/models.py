@@ -24,6 +24,7 @@ from rkmpc.core.progress import EpochProgress
 from rkmpc.core.versions import RKMPC_VERSION
 from rkmpc.experiments.cache import ModelCache
 from rkmpc.experiments.results import DataRecord, ModelRecord, TrainingRecord
+from rkmpc.experiments.training import estimated_for
 from rkmpc.learning.data.dataset import TransitionDataset
 from rkmpc.learning.io import load_model
 from rkmpc.learning.koopman.model import KoopmanModel
@@ -103,7 +104,7 @@ def make_model(
         collected = time.perf_counter() - t0
         learned = learn(
             recipe,
-            made,
+            estimated_for(recipe, made, scenario.vehicle, scenario.car.estimator),
             made_for=replace(scenario.provenance(), scale=None),
             vehicle=scenario.vehicle,
             seed=seed,
@@ -130,6 +131,7 @@ def make_model(
         "augment": asdict(learner.augment(seed)),
         "model": learner.default_model(seed, epochs).get_params(),
         "holdout": TrainConfig().holdout,
+        "estimator": asdict(scenario.car.estimator),
         "rkmpc_version": RKMPC_VERSION,
         "code": _code_hash(),
     }

@@ -3,17 +3,47 @@
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 
+import numpy as np
+
 from rkmpc.core.errors import ParameterError
+from rkmpc.core.observation import OBSERVATION_FIELDS
+from rkmpc.estimation.config import EstimatorConfig
+from rkmpc.estimation.labels import estimate_dataset
 from rkmpc.learning.contract import Provenance
 from rkmpc.learning.data.dataset import TransitionDataset
 from rkmpc.learning.identification import IdentifiedModel
 from rkmpc.learning.learn import Learned, learn, save_learned
-from rkmpc.learning.recipes import recipe_of_kind
+from rkmpc.learning.recipes import KoopmanLearner, Recipe, recipe_of_kind
 from rkmpc.vehicle.params import VehicleParams
 
-__all__ = ["describe_identified", "describe_learned", "train_to_file"]
+__all__ = ["describe_identified", "describe_learned", "estimated_for", "train_to_file"]
+
+#: The observation fields a Koopman model's data must measure to be learned from as they are.
+_MEASURED = ("speed", "yaw_rate", "steer_angle")
+
+
+def estimated_for(
+    recipe: Recipe, data: TransitionDataset, vehicle: VehicleParams, estimator: EstimatorConfig | None = None
+) -> TransitionDataset:
+    """The data a recipe learns from: as recorded, or the state estimator's where a field is missing.
+
+    A Koopman model learns from data whose speed, yaw rate and wheel angle were measured as they
+    are; data of a car without a steering-angle sensor (a real car, the ``f1tenth-real`` sensors)
+    are replaced by the smoothed estimates of :func:`rkmpc.estimation.labels.estimate_dataset`
+    (poses without jumps, the wheel angle propagated from the commands through the nominal servo,
+    which the driving controller's estimator then uses too). An identification learns from the
+    data as recorded (it identifies the servo from the yaw rate's response to the commands).
+    """
+    if not isinstance(recipe.learner, KoopmanLearner):
+        return data
+    columns = [OBSERVATION_FIELDS.index(name) for name in _MEASURED]
+    if bool(np.isfinite(data.obs[:, columns]).all() and np.isfinite(data.next_obs[:, columns]).all()):
+        return data
+    config = replace(estimator if estimator is not None else EstimatorConfig(), control_period=data.dt)
+    return estimate_dataset(data, vehicle, config=config)
 
 
 def describe_identified(model: IdentifiedModel) -> str:
@@ -87,9 +117,10 @@ def train_to_file(
     """
     if made_for.wheelbase != vehicle.wheelbase:
         raise ParameterError("train_to_file: made_for must give the wheelbase of the car's vehicle")
+    recipe = recipe_of_kind(kind)
     learned = learn(
-        recipe_of_kind(kind),
-        data,
+        recipe,
+        estimated_for(recipe, data, vehicle),
         made_for=made_for,
         vehicle=vehicle,
         seed=seed,
