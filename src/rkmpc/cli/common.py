@@ -18,7 +18,10 @@ __all__ = [
     "add_config_args",
     "add_force_arg",
     "add_ladder_args",
+    "add_learning_args",
+    "add_mismatch_arg",
     "add_parallel_args",
+    "add_scenario_args",
     "at_least",
     "car_config",
     "ints",
@@ -205,4 +208,75 @@ def ladder_from_args(args: argparse.Namespace, car: CarConfig) -> tuple[tuple[fl
         start=None if args.start is None else _pace(args.start, "--start"),
         step=None if args.step is None else _pace(args.step, "--step"),
         steps=args.steps,
+    )
+
+
+def add_scenario_args(
+    parser: argparse.ArgumentParser,
+    out_help: str = "output folder",
+    laps_help: str = "laps each controller drives",
+) -> None:
+    """The track, the car and the run: what ``run``, ``compare`` and ``collect`` share."""
+    parser.add_argument("--track", default="builtin", help="built-in track name or TUM centre-line CSV")
+    parser.add_argument(
+        "--raceline", default=None, help="TUM race-line CSV to track instead of the centre line"
+    )
+    parser.add_argument(
+        "--scale", type=float, default=None, help="scale of track files (default: the car's, 0.1 for f1tenth)"
+    )
+    add_config_args(parser)
+    parser.add_argument(
+        "--car", default=None, help="drive a car of the zoo (gym, overshoot, ..., random-<seed>) instead"
+    )
+    parser.add_argument("--laps", type=at_least(1), default=1, help=laps_help)
+    parser.add_argument(
+        "--seed",
+        type=at_least(0),
+        default=None,
+        help="seed of every random choice; else the --config file's (default: 0)",
+    )
+    parser.add_argument("--noise", action="store_true", help="add measurement noise to the observations")
+    parser.add_argument("--out", required=True, type=Path, help=out_help)
+    parser.add_argument(
+        "--model",
+        action="append",
+        default=[],
+        metavar="[NAME=]PATH",
+        help="model file of a learned controller (rkmpc, rkmpc-paper, kmpc, lmpc-id); repeat as NAME=PATH",
+    )
+
+
+def add_learning_args(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--data-laps",
+        type=at_least(1),
+        default=None,
+        help="LMPC laps of data the learned controllers learn from; else the --config file's (default: 2)",
+    )
+    parser.add_argument(
+        "--kmpc-samples",
+        type=at_least(1000),
+        default=None,
+        help="random-excitation samples of the KMPC model; else the --config file's (default: 50000)",
+    )
+    parser.add_argument(
+        "--fault",
+        default=None,
+        help="also drive every controller with this fault (noise, delay, friction, heavy); report the effect",
+    )
+    parser.add_argument("--cache-dir", type=Path, default=None, help=CACHE_HELP)
+    parser.add_argument("--no-cache", action="store_true", help="train every model afresh, store nothing")
+    parser.add_argument(
+        "--epochs",
+        type=at_least(1),
+        default=None,
+        help="training epochs of the learned models; else the --config file's, else the recipes'",
+    )
+    add_mismatch_arg(parser, "drive with --model files made with another car, period or track scale")
+    add_force_arg(parser)
+
+
+def add_mismatch_arg(parser: argparse.ArgumentParser, what: str) -> None:
+    parser.add_argument(
+        "--allow-mismatch", action="store_true", help=f"{what} (refused otherwise; the results record it)"
     )

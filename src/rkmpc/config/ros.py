@@ -94,14 +94,25 @@ class OdometrySettings:
     reliability : str
         QoS of the subscription: ``"reliable"`` or ``"best_effort"`` (which also hears reliable
         publishers; use it for a localisation that publishes best effort).
+    lateral_velocity : bool
+        Whether ``twist.linear.y`` is measured (a simulator's, a motion-capture system's). A real
+        car's VESC odometry publishes 0 there: with ``false`` the slip angle is NaN (unmeasured,
+        for the state estimator to estimate), never a slip angle of 0.
+    yaw_rate : bool
+        Whether ``twist.angular.z`` is measured; ``false`` makes the yaw rate NaN.
     """
 
     pose: str = "cog"
     reliability: str = "reliable"
+    lateral_velocity: bool = True
+    yaw_rate: bool = True
 
     def __post_init__(self) -> None:
         _choice(self, "pose", POSE_REFERENCES)
         _choice(self, "reliability", RELIABILITIES)
+        for name in ("lateral_velocity", "yaw_rate"):
+            if not isinstance(getattr(self, name), bool):
+                raise ParameterError(f"{name} must be true or false, got {getattr(self, name)!r}")
 
 
 @dataclass(frozen=True)

@@ -123,3 +123,20 @@ def _refuse_other_format(path: Path, kind: str, *, identified: bool) -> None:
             f"holds a JSON file (an identified model, for lmpc-id?); this controller needs a {kind!r} "
             f"model archive from `rkmpc train --kind {kind}`",
         )
+
+
+def load_any_model(path: str | Path) -> IdentifiedModel | KoopmanModel:
+    """The model at ``path``, whatever its kind: an identified model (JSON) or a Koopman model (archive)
+    of the kind its file records, checked as :func:`load_model` checks it."""
+    path = Path(path)
+    try:
+        with path.open("rb") as handle:
+            head = handle.read(64).lstrip()
+    except OSError:
+        head = b""  # the loader names what is wrong with the file
+    if head.startswith(b"{"):
+        return load_identified(path)
+    kind = KoopmanModel.load(path).metadata_.get("kind")
+    if not isinstance(kind, str):
+        raise InputFileError(path, "the model file does not say its kind", field="kind")
+    return load_model(path, kind)

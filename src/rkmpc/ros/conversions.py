@@ -50,7 +50,12 @@ def set_stamp(stamp: Any, seconds: float) -> None:
 
 
 def observation_from_odometry(
-    msg: Any, *, rear_axle_to_cog: float = 0.0, steer: float = math.nan
+    msg: Any,
+    *,
+    rear_axle_to_cog: float = 0.0,
+    steer: float = math.nan,
+    lateral_velocity: bool = True,
+    yaw_rate: bool = True,
 ) -> Observation:
     """The observation an odometry message reports.
 
@@ -63,28 +68,33 @@ def observation_from_odometry(
         ``lr``); 0 when the pose is the centre of gravity's.
     steer : float
         Measured front wheel angle (rad), NaN when not measured.
+    lateral_velocity, yaw_rate : bool
+        Whether ``twist.linear.y`` and ``twist.angular.z`` are measured; when not, the slip angle
+        and the yaw rate are NaN (unmeasured), never 0.
 
     Returns
     -------
     Observation
         Position of the centre of gravity, heading, ``speed`` = ``twist.linear.x`` (along the
         heading), yaw rate = ``twist.angular.z``, slip angle = ``atan2(vy, vx)`` (0 at standstill),
-        ``time`` = the header stamp (s).
+        ``time`` and ``pose_time`` = the header stamp (s).
     """
     pose = msg.pose.pose
     q = pose.orientation
     yaw = yaw_from_quaternion(q.x, q.y, q.z, q.w)
     twist = msg.twist.twist
     vx, vy = float(twist.linear.x), float(twist.linear.y)
+    stamp = seconds_of(msg.header.stamp)
     return Observation(
         x=float(pose.position.x) + rear_axle_to_cog * math.cos(yaw),
         y=float(pose.position.y) + rear_axle_to_cog * math.sin(yaw),
         yaw=yaw,
         speed=vx,
-        yaw_rate=float(twist.angular.z),
-        slip_angle=math.atan2(vy, vx) if (vx or vy) else 0.0,
+        yaw_rate=float(twist.angular.z) if yaw_rate else math.nan,
+        slip_angle=(math.atan2(vy, vx) if (vx or vy) else 0.0) if lateral_velocity else math.nan,
         steer_angle=float(steer),
-        time=seconds_of(msg.header.stamp),
+        time=stamp,
+        pose_time=stamp,
     )
 
 

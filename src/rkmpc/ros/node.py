@@ -191,7 +191,13 @@ class ControllerNode(Node):
                 )
                 self._frame_warned = True
             return
-        observation = observation_from_odometry(msg, rear_axle_to_cog=self._lr)
+        reading = self.config.odometry
+        observation = observation_from_odometry(
+            msg,
+            rear_axle_to_cog=self._lr,
+            lateral_velocity=reading.lateral_velocity,
+            yaw_rate=reading.yaw_rate,
+        )
         wall = time.monotonic()
         if not self._lockstep:
             self.driver.on_odometry(observation, wall, wall)

@@ -1,0 +1,337 @@
+"""How well trained models predict recorded driving: :func:`evaluate` (``rkmpc evaluate``).
+
+Open-loop k-step prediction: from every sample whose next ``H`` transitions lie in one episode,
+each model predicts the car's pose and speed ``1..H`` steps ahead from the sample's state and the
+*recorded* commands alone, and is scored against where the car really went. Every model is judged
+against the nominal kinematic bicycle driven by the same commands (``kinematic``):
+
+``kinematic``
+    The paper's kinematic bicycle with the command as its input (``U = [v_cmd, delta_cmd]``).
+``residual`` (rkmpc)
+    The lifted model predicts the input ``U_p`` the kinematic bicycle needs (``y = C z + D u``,
+    ``z+ = A z + B u``) from the state features at the start; the bicycle driven by ``U_p``.
+``identified`` (lmpc-id)
+    The identified servo turns the recorded steering commands into a wheel angle, and the bicycle
+    turns with the identified understeer: curvature ``tan(delta) / (L + K v^2)``.
+``koopman`` (kmpc)
+    The lifted model predicts the pose in the car's frame and the speed itself.
+
+The ``paper`` model (rkmpc-paper) predicts what a *correction* ``dU`` on top of the LMPC's plan
+does, which recorded driving does not contain: it cannot be evaluated here and is refused.
+
+Where the recorded data measure the car's state (speed, yaw rate, wheel angle), the truth and each
+start are the data as recorded; where they do not (a real car: no wheel angle, a localiser whose
+pose jumps), both are the state estimator's smoothed estimates
+(:func:`rkmpc.experiments.training.estimated_for`), the wheel angle propagated through the steering
+model each model was trained with.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import asdict, dataclass, replace
+from typing import Any
+
+import numpy as np
+
+from rkmpc.core.angles import wrap_angle
+from rkmpc.core.errors import ParameterError
+from rkmpc.core.observation import OBSERVATION_FIELDS
+from rkmpc.estimation.config import EstimatorConfig
+from rkmpc.estimation.steering import SteeringModel, wheel_angles
+from rkmpc.experiments.training import estimated_for
+from rkmpc.learning.data.dataset import TransitionDataset
+from rkmpc.learning.features import KMPC_STATE, RESIDUAL_STATE, previous_commands
+from rkmpc.learning.identification import IdentifiedModel, wheel_from_commands
+from rkmpc.learning.koopman.model import KoopmanModel
+from rkmpc.learning.recipes import recipe_of_kind
+from rkmpc.sim.build import steering_of
+from rkmpc.vehicle.params import VehicleParams
+
+__all__ = ["DEFAULT_HORIZONS", "Evaluation", "EvaluationRow", "evaluate", "model_kind", "with_steering"]
+
+#: Horizons of ``rkmpc evaluate`` by default (steps).
+DEFAULT_HORIZONS = (1, 5, 10, 20)
+#: Longest horizon (steps): 200 steps are 10 s at 20 Hz.
+MAX_HORIZON = 200
+_X, _Y, _YAW, _SPEED, _STEER = (
+    OBSERVATION_FIELDS.index(n) for n in ("x", "y", "yaw", "speed", "steer_angle")
+)
+
+
+@dataclass(frozen=True, kw_only=True)
+class EvaluationRow:
+    """One model at one horizon: the errors of its predictions (SI units) over ``samples`` starts."""
+
+    model: str
+    kind: str
+    horizon_steps: int
+    horizon_s: float
+    samples: int
+    position_mean_m: float
+    position_p95_m: float
+    heading_mean_rad: float
+    speed_mean_m_s: float
+
+
+@dataclass(frozen=True, kw_only=True)
+class Evaluation:
+    """What :func:`evaluate` found: one row per model and horizon, and how the truth was made."""
+
+    rows: list[EvaluationRow]
+    transitions: int
+    starts: int
+    dt: float
+    truth: str
+    source: str | None
+    models: dict[str, str]
+
+    def row(self, model: str, horizon: int) -> EvaluationRow:
+        """The row of ``model`` at ``horizon`` steps."""
+        for row in self.rows:
+            if row.model == model and row.horizon_steps == horizon:
+                return row
+        raise ParameterError(f"no evaluation of {model!r} at {horizon} steps")
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "source": self.source,
+            "transitions": self.transitions,
+            "starts": self.starts,
+            "dt": self.dt,
+            "truth": self.truth,
+            "models": dict(self.models),
+            "rows": [asdict(row) for row in self.rows],
+        }
+
+    def figure(self) -> Any:
+        """Position and heading error against the horizon, one line per model."""
+        from rkmpc.analysis.prediction_plots import plot_prediction_errors
+
+        names = list(dict.fromkeys(row.model for row in self.rows))
+        steps = sorted({row.horizon_steps for row in self.rows})
+
+        def series(field: str) -> dict[str, list[float]]:
+            return {n: [float(getattr(self.row(n, h), field)) for h in steps] for n in names}
+
+        return plot_prediction_errors(
+            [h * self.dt for h in steps],
+            series("position_mean_m"),
+            series("position_p95_m"),
+            series("heading_mean_rad"),
+            f"open-loop prediction of {self.source or 'recorded driving'}",
+        )
+
+    def to_markdown(self) -> str:
+        """One row per model and horizon, with the ratio of its errors to the kinematic model's."""
+        lines = [
+            f"Open-loop prediction of {self.transitions} recorded transitions ({self.starts} starts, "
+            f"dt {self.dt:g} s); truth: {self.truth}.",
+            "",
+            "| model | kind | steps | s | position mean (m) | p95 (m) | vs kinematic | heading (rad) | "
+            "speed (m/s) |",
+            "|---|---|---|---|---|---|---|---|---|",
+        ]
+        for r in self.rows:
+            base = self.row("kinematic", r.horizon_steps)
+            ratio = r.position_mean_m / base.position_mean_m if base.position_mean_m > 0 else math.nan
+            p95 = r.position_p95_m / base.position_p95_m if base.position_p95_m > 0 else math.nan
+            lines.append(
+                f"| {r.model} | {r.kind} | {r.horizon_steps} | {r.horizon_s:.2f} | {r.position_mean_m:.4f} | "
+                f"{r.position_p95_m:.4f} | {ratio:.2f} / {p95:.2f} | {r.heading_mean_rad:.4f} | "
+                f"{r.speed_mean_m_s:.3f} |"
+            )
+        return "\n".join(lines) + "\n"
+
+
+def model_kind(model: object) -> str:
+    """The kind of a model as its file says (``residual``, ``identified``, ``koopman``, ...)."""
+    if isinstance(model, IdentifiedModel):
+        return "identified"
+    metadata = getattr(model, "metadata_", None)
+    if isinstance(metadata, dict) and "kind" in metadata:
+        return str(metadata["kind"])
+    raise ParameterError(f"cannot tell the kind of the model {model!r}")
+
+
+def with_steering(data: TransitionDataset, steering: SteeringModel) -> TransitionDataset:
+    """``data`` with its wheel angles propagated from its commands through ``steering``, per episode."""
+    obs, next_obs = data.obs.copy(), data.next_obs.copy()
+    episode = np.asarray(data.episode)
+    for value in np.unique(episode):
+        rows = np.flatnonzero(episode == value)
+        angles = wheel_angles(steering, data.dt, data.command[rows, 1])
+        obs[rows, _STEER] = angles[:-1]
+        next_obs[rows, _STEER] = angles[1:]
+    return replace(data, obs=obs, next_obs=next_obs)
+
+
+def _starts(data: TransitionDataset, horizon: int) -> np.ndarray:
+    """Rows from which ``horizon`` transitions follow within one episode."""
+    n = len(data)
+    if n < horizon:
+        return np.zeros(0, dtype=int)
+    episode = np.asarray(data.episode)
+    idx = np.arange(n - horizon + 1)
+    return idx[episode[idx] == episode[idx + horizon - 1]]
+
+
+def _arcs(pose: np.ndarray, speed: np.ndarray, curvature: np.ndarray, dt: float) -> np.ndarray:
+    """Poses (M, H, 3) after each arc of ``speed`` and ``curvature`` (M, H) from ``pose`` (M, 3)."""
+    m, h = speed.shape
+    out = np.empty((m, h, 3))
+    x, y, yaw = pose[:, 0].copy(), pose[:, 1].copy(), pose[:, 2].copy()
+    for k in range(h):
+        distance = speed[:, k] * dt
+        half = 0.5 * distance * curvature[:, k]
+        small = np.abs(half) < 1e-4
+        chord = np.where(small, 1.0 - half * half / 6.0, np.sin(half) / np.where(small, 1.0, half))
+        x = x + distance * chord * np.cos(yaw + half)
+        y = y + distance * chord * np.sin(yaw + half)
+        yaw = yaw + 2.0 * half
+        out[:, k] = np.stack([x, y, yaw], axis=1)
+    return out
+
+
+def _window(values: np.ndarray, starts: np.ndarray, horizon: int) -> np.ndarray:
+    """``values[start + k]`` for every start and ``k < horizon``: shape (M, horizon, ...)."""
+    return values[starts[:, None] + np.arange(horizon)[None, :]]
+
+
+def _predict(
+    kind: str,
+    model: object,
+    data: TransitionDataset,
+    starts: np.ndarray,
+    horizon: int,
+    vehicle: VehicleParams,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Predicted poses (M, H, 3) and speeds (M, H) after each step, from each start's state."""
+    commands = _window(data.command, starts, horizon)
+    pose0 = data.obs[starts][:, [_X, _Y, _YAW]]
+    length = vehicle.wheelbase
+    if kind == "kinematic":
+        return _arcs(pose0, commands[..., 0], np.tan(commands[..., 1]) / length, data.dt), commands[..., 0]
+    if kind == "identified" and isinstance(model, IdentifiedModel):
+        wheel = _window(wheel_from_commands(model, data, vehicle), starts, horizon)
+        speed = commands[..., 0]
+        curvature = np.tan(wheel) / (length + model.understeer_gradient * speed**2)
+        return _arcs(pose0, speed, curvature, data.dt), speed
+    if not isinstance(model, KoopmanModel):
+        raise ParameterError(f"cannot predict with a {kind!r} model")
+    previous = previous_commands(data.command, data.episode)[starts]
+    if kind == "residual":
+        z = model.lift(RESIDUAL_STATE.of_array(data.obs[starts], previous))
+        inputs = np.empty_like(commands)
+        for k in range(horizon):
+            inputs[:, k] = model.output(z, commands[:, k])
+            z = model.step(z, commands[:, k])
+        curvature = np.tan(inputs[..., 1]) / length
+        return _arcs(pose0, inputs[..., 0], curvature, data.dt), inputs[..., 0]
+    if kind == "koopman":
+        local = KMPC_STATE.of_array(data.obs[starts])
+        local[:, :3] = 0.0  # the pose in the car's own frame
+        states = np.stack([model.predict_states(x0, u)[1:] for x0, u in zip(local, commands, strict=True)])
+        c, s = np.cos(pose0[:, 2])[:, None], np.sin(pose0[:, 2])[:, None]
+        poses = np.stack(
+            [
+                pose0[:, :1] + c * states[..., 0] - s * states[..., 1],
+                pose0[:, 1:2] + s * states[..., 0] + c * states[..., 1],
+                pose0[:, 2:3] + states[..., 2],
+            ],
+            axis=-1,
+        )
+        return poses, states[..., 3]
+    raise ParameterError(
+        f"a {kind!r} model cannot be evaluated on recorded driving"
+        + (
+            ": it predicts what a correction dU on the LMPC's plan does, which a recording does not hold"
+            if kind == "paper"
+            else ""
+        )
+    )
+
+
+def evaluate(
+    data: TransitionDataset,
+    models: Mapping[str, object],
+    vehicle: VehicleParams,
+    *,
+    horizons: Sequence[int] = DEFAULT_HORIZONS,
+    estimator: EstimatorConfig | None = None,
+    source: str | None = None,
+) -> Evaluation:
+    """Score every model's open-loop predictions of ``data`` against the kinematic model's.
+
+    Parameters
+    ----------
+    data : TransitionDataset
+        Recorded driving (a simulator's log, a bag, a CSV log), on one control period.
+    models : mapping of str to model
+        Trained models by the name to show (a file's name); kinds as :func:`model_kind` says.
+    vehicle : VehicleParams
+        The car's nominal parameters (wheelbase of the kinematic model, servo).
+    horizons : sequence of int
+        Steps ahead to score, 1 to :data:`MAX_HORIZON`.
+    estimator : EstimatorConfig, optional
+        The state estimator's settings, where the data need it.
+    source : str, optional
+        Where the data came from, for the record.
+
+    Raises
+    ------
+    ParameterError
+        For a horizon out of range, a model that cannot be evaluated, or data too short.
+    """
+    steps = sorted({int(h) for h in horizons})
+    if not steps or steps[0] < 1 or steps[-1] > MAX_HORIZON:
+        raise ParameterError(f"horizons must be integers from 1 to {MAX_HORIZON}, got {list(horizons)}")
+    horizon = steps[-1]
+    kinds = {name: model_kind(model) for name, model in models.items()}
+    reference = estimated_for(recipe_of_kind("residual"), data, vehicle, estimator)
+    estimated = reference is not data
+    starts = _starts(reference, horizon)
+    if starts.size == 0:
+        raise ParameterError(f"no {horizon} consecutive transitions in one episode to evaluate on")
+    truth_pose = _window(reference.next_obs, starts, horizon)[..., [_X, _Y, _YAW]]
+    truth_speed = _window(reference.next_obs[:, _SPEED], starts, horizon)
+    rows: list[EvaluationRow] = []
+    entries: list[tuple[str, str, object]] = [("kinematic", "kinematic", None)]
+    entries += [(name, kinds[name], model) for name, model in models.items()]
+    for name, kind, model in entries:
+        # A model's wheel-angle feature, where the data do not measure it, as it was trained with.
+        own = (
+            with_steering(reference, steering_of(model, vehicle))
+            if estimated and model is not None
+            else reference
+        )
+        poses, speeds = _predict(kind, model, own, starts, horizon, vehicle)
+        position = np.hypot(*(poses[..., :2] - truth_pose[..., :2]).transpose(2, 0, 1))
+        heading = np.abs(wrap_angle(poses[..., 2] - truth_pose[..., 2]))
+        speed = np.abs(speeds - truth_speed)
+        for h in steps:
+            k = h - 1
+            rows.append(
+                EvaluationRow(
+                    model=name,
+                    kind=kind,
+                    horizon_steps=h,
+                    horizon_s=h * data.dt,
+                    samples=int(starts.size),
+                    position_mean_m=float(np.mean(position[:, k])),
+                    position_p95_m=float(np.percentile(position[:, k], 95)),
+                    heading_mean_rad=float(np.mean(heading[:, k])),
+                    speed_mean_m_s=float(np.nanmean(speed[:, k])),
+                )
+            )
+    truth = "the state estimator's smoothed estimates" if estimated else "the data as recorded"
+    return Evaluation(
+        rows=rows,
+        transitions=len(data),
+        starts=int(starts.size),
+        dt=data.dt,
+        truth=truth,
+        source=source,
+        models={name: kinds[name] for name in models},
+    )
