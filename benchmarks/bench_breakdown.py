@@ -32,6 +32,7 @@ from rkmpc.core.io import write_json_atomic
 from rkmpc.core.versions import versions
 from rkmpc.experiments.compare import CompareConfig
 from rkmpc.experiments.models import learn_models
+from rkmpc.sim.build import check_model
 from rkmpc.sim.closed_loop import SimConfig, simulate
 from rkmpc.sim.run import RunSpec, build_plant
 from rkmpc.sim.scenario import load_scenario
@@ -91,11 +92,16 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=Path("runs/bench/breakdown.json"))
     args = parser.parse_args()
     scenario = load_scenario(args.track)
-    study = CompareConfig(track=scenario.track.source or scenario.track.name, controllers=("rkmpc",))
-    options, _ = learn_models(scenario, study.plan())
+    study = CompareConfig(
+        track=scenario.track.source or scenario.track.name, car=scenario.car, controllers=("rkmpc",)
+    )
+    models, _ = learn_models(scenario, study.plan())
+    model = models["rkmpc"]
+    check_model(model, scenario, source="the rkmpc model")
     # The controller gets its own reference object: the simulator's projections are not timed.
     reference = copy.copy(scenario.reference)
-    controller = make_controller("rkmpc", reference, scenario.vehicle, **options["rkmpc"])
+    settings = scenario.car.controllers.with_period(scenario.dt)
+    controller = make_controller("rkmpc", reference, scenario.vehicle, settings=settings, model=model)
     timer = StageTimer()
     instrument(controller, timer)
 

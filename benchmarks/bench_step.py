@@ -16,13 +16,13 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import argparse
 import importlib.util
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+from scenarios import with_controllers
 
-from rkmpc.control.linear.lmpc import LMPCConfig
-from rkmpc.control.nonlinear.nmpc import NMPCConfig
 from rkmpc.core.io import write_json_atomic
 from rkmpc.core.versions import versions
 from rkmpc.experiments.compare import CompareConfig
@@ -33,28 +33,39 @@ from rkmpc.sim.scenario import Scenario, load_scenario
 
 SHARED_MONZA = Path(__file__).resolve().parents[1].parent / "shared" / "tracks" / "centerlines" / "Monza.csv"
 
-#: (label, controller name, options) of the controllers that need no training.
-CASES = (
-    ("pp", "pp", {}),
-    ("lmpc (daqp)", "lmpc", {"config": LMPCConfig(solver="daqp")}),
-    ("lmpc (osqp)", "lmpc", {"config": LMPCConfig(solver="osqp")}),
-    ("nmpc (ipopt)", "nmpc", {}),
-    ("nmpc (sqp, 1 it)", "nmpc", {"config": NMPCConfig(solver="sqpmethod", max_iterations=1)}),
-    ("nmpc-dyn (ipopt)", "nmpc-dynamic", {}),
-    ("nmpc-dyn (sqp, 1 it)", "nmpc-dynamic", {"config": NMPCConfig(solver="sqpmethod", max_iterations=1)}),
+#: A benchmark case: label, controller name, changes to the car's controller settings (by section
+#: attribute: ``{"lmpc": {"solver": "osqp"}}``), and the model of a learned controller.
+Case = tuple[str, str, dict[str, dict[str, Any]], object]
+
+#: The controllers that need no training.
+CASES: tuple[Case, ...] = (
+    ("pp", "pp", {}, None),
+    ("lmpc (daqp)", "lmpc", {"lmpc": {"solver": "daqp"}}, None),
+    ("lmpc (osqp)", "lmpc", {"lmpc": {"solver": "osqp"}}, None),
+    ("nmpc (ipopt)", "nmpc", {}, None),
+    ("nmpc (sqp, 1 it)", "nmpc", {"nmpc": {"solver": "sqpmethod", "max_iterations": 1}}, None),
+    ("nmpc-dyn (ipopt)", "nmpc-dynamic", {}, None),
+    ("nmpc-dyn (sqp, 1 it)", "nmpc-dynamic", {"nmpc": {"solver": "sqpmethod", "max_iterations": 1}}, None),
 )
 
 
-def learned_cases(scenario: Scenario, kmpc_model: Path | None) -> list[tuple[str, str, dict[str, Any]]]:
+def with_settings(scenario: Scenario, changes: dict[str, dict[str, Any]]) -> Scenario:
+    """The scenario whose car has some controller settings changed (the reference stays)."""
+    settings = scenario.car.controllers
+    return with_controllers(scenario, **{s: replace(getattr(settings, s), **c) for s, c in changes.items()})
+
+
+def learned_cases(scenario: Scenario, kmpc_model: Path | None) -> list[Case]:
     """Learn as ``rkmpc compare`` does: two LMPC laps of the track, models from the cache when there."""
     names = ("lmpc-id", "rkmpc", "rkmpc-paper", "kmpc")
     study = CompareConfig(
         track=scenario.track.source or scenario.track.name,
+        car=scenario.car,
         controllers=names,
-        kmpc_model=None if kmpc_model is None else str(kmpc_model),
+        model_files=() if kmpc_model is None else (("kmpc", str(kmpc_model)),),
     )
-    options, _ = learn_models(scenario, study.plan())
-    return [(name, name, options[name]) for name in names]
+    models, _ = learn_models(scenario, study.plan())
+    return [(name, name, {}, models[name]) for name in names]
 
 
 def main() -> None:
@@ -73,15 +84,16 @@ def main() -> None:
     scenario = load_scenario(args.track)
     cases = list(CASES)
     if importlib.util.find_spec("acados") is not None:
-        cases.append(("nmpc-acados (rti)", "nmpc-acados", {}))
-        cases.append(("nmpc-acados-dyn (rti)", "nmpc-acados-dynamic", {}))
+        cases.append(("nmpc-acados (rti)", "nmpc-acados", {}, None))
+        cases.append(("nmpc-acados-dyn (rti)", "nmpc-acados-dynamic", {}, None))
     if not args.no_learned:
         cases += learned_cases(scenario, args.kmpc_model)
     report: dict[str, object] = {"track": scenario.track.name, "versions": versions(), "controllers": {}}
     print(f"track {scenario.track.name}, {scenario.reference.path.length:.1f} m")
     print(f"{'controller':20s} {'steps':>6s} {'median':>8s} {'mean':>8s} {'p99':>8s} {'max':>8s}  (ms)")
-    for label, name, options in cases:
-        result, metrics = run_controller(scenario, RunSpec(controller=name), controller_options=options)
+    for label, name, changes, model in cases:
+        runs_in = with_settings(scenario, changes)
+        result, metrics = run_controller(runs_in, RunSpec(controller=name), model=model)
         ms = 1e3 * result.log["solve_time_s"]
         ms = ms[np.isfinite(ms)]
         stats = {

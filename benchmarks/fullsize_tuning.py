@@ -1,7 +1,8 @@
 """Held-out tracks on which the full-size car's ``rkmpc`` settings were chosen (issue 11).
 
-The full-size residual settings (``rkmpc.sim.scenario.fullsize_residual``) are tuned here, never
-on the shared tracks. The held-out set, written to a folder as TUM centre-line files:
+The full-size residual settings (:func:`rkmpc.config.scaling.speed_priced` of the 1:10 car's carried
+over, written out in ``rkmpc/config/presets/fullsize.toml``) are tuned here, never on the shared
+tracks. The held-out set, written to a folder as TUM centre-line files:
 
 - ``builtin-x30`` and ``oval-x30``: the built-in and oval tracks written out 10 times larger,
   points 1 m apart, and loaded at scale 3 (2.6 km and 1.7 km). A result moves by a few points
@@ -22,7 +23,10 @@ lateral-maximum and heading changes against the LMPC (or where the car left the 
 
     python benchmarks/fullsize_tuning.py OUT_DIR 'p8=position_weight:8;p16=position_weight:16' [TRACKS]
 
-with ``TRACKS`` a comma-separated subset of the names above (default: all eight). The figures of
+with ``TRACKS`` a comma-separated subset of the names above (default: all eight). A variant's
+``position_weight``, ``top_price`` and ``floor`` are the keyword arguments of ``speed_priced``
+(the preset's: 8, 4 and 2), which recomputes the settings from the carried-over ones; any other
+key replaces that field of the ``RKMPCConfig`` it gives. The figures of
 issue 11's sixth note came from an earlier copy of this script, run with the variants
 ``'flat=lateral_accel_weight:0,steer_weight:17;p8=position_weight:8'`` on the first six and
 ``'p16=position_weight:16;p32=position_weight:32'`` on ``fast3,fast2,builtin-x30,oval-x30``:
@@ -30,26 +34,32 @@ a higher position weight at the preset's steering price gained on each track it 
 until 32 left ``fast2``; on the shared tracks 16 left Sakhir, so the preset stayed at 4. In the
 seventh session 8 (``'p8=position_weight:8'``, 2-7 points better on the seven tracks it drove)
 completed all shared tracks and became the preset; ``docs/cars.md`` has the other variants tried.
-Then the slip drift (``ResidualMPCConfig.slip_drift``) joined the preset: ``'nodrift=slip_drift:false'``
+Then the slip drift (``RKMPCConfig.slip_drift``) joined the preset: ``'nodrift=slip_drift:false'``
 drives without it (``true``/``false`` set a switch).
 """
 
 from __future__ import annotations
 
-import sys
+import argparse
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+from scenarios import with_controllers
 
+from rkmpc.config.loader import load_preset
+from rkmpc.config.scaling import carry_over, speed_priced
+from rkmpc.control.learned.residual_config import RKMPCConfig
 from rkmpc.core.io import atomic_write
 from rkmpc.experiments.models import ModelPlan, learn_models
 from rkmpc.experiments.runs import run_controller
 from rkmpc.sim.run import RunSpec
-from rkmpc.sim.scenario import load_scenario
+from rkmpc.sim.scenario import Scenario, load_scenario
 from rkmpc.track.builtin import builtin_track
 
 KEYS = ("lateral_error_mean_m", "lateral_error_max_m", "heading_error_mean_rad")
+#: The keyword arguments of :func:`rkmpc.config.scaling.speed_priced` that made the preset's settings.
+PRESET_PRICING = {"position_weight": 8.0, "top_price": 4.0, "floor": 2.0}
 RADII_M = (15.0, 25.0, 40.0, 70.0, 120.0)
 
 
@@ -147,6 +157,25 @@ def _parse(spec: str) -> dict[str, dict[str, float | bool]]:
     return variants
 
 
+def variant_settings(scenario: Scenario, fields: dict[str, float | bool]) -> RKMPCConfig:
+    """rkmpc's settings of a variant: the 1:10 car's carried over to the scenario's car and priced
+    by :func:`speed_priced` with the preset's arguments, those of ``fields`` replaced; then the
+    other ``fields`` replace those fields of the result."""
+    small, car = load_preset("f1tenth"), scenario.car
+    scaled = carry_over(small.controllers.rkmpc, small.vehicle, small.limits, car.vehicle, car.limits)
+    pricing = {**PRESET_PRICING, **{k: float(v) for k, v in fields.items() if k in PRESET_PRICING}}
+    rest = {k: v for k, v in fields.items() if k not in PRESET_PRICING}
+    priced = speed_priced(
+        scaled,
+        car.vehicle,
+        car.limits,
+        position_weight=pricing["position_weight"],
+        top_price=pricing["top_price"],
+        floor=pricing["floor"],
+    )
+    return replace(priced, **rest)
+
+
 def main(folder: Path, spec: str, names: list[str] | None = None) -> None:
     print("| track | setting | rkmpc vs LMPC: lat / lat max / head |")
     print("|---|---|---|")
@@ -154,12 +183,14 @@ def main(folder: Path, spec: str, names: list[str] | None = None) -> None:
         if names is not None and track not in names:
             continue
         scenario = load_scenario(file, vehicle="fullsize", scale=scale)
-        options, _ = learn_models(scenario, ModelPlan(controllers=("rkmpc",)))
+        models, _ = learn_models(scenario, ModelPlan(controllers=("rkmpc",)))
         _, lmpc = run_controller(scenario, RunSpec("lmpc"))
-        preset = scenario.options_for("rkmpc")["config"]
         for name, fields in {"preset": {}, **_parse(spec)}.items():
-            own = {**options["rkmpc"], "config": replace(preset, **fields)}
-            _, m = run_controller(scenario, RunSpec("rkmpc"), controller_options=own)
+            # The preset drives with the file's numbers; a variant with speed_priced's (the same to 1e-12).
+            settings = scenario.car.controllers.rkmpc if not fields else variant_settings(scenario, fields)
+            _, m = run_controller(
+                with_controllers(scenario, rkmpc=settings), RunSpec("rkmpc"), model=models["rkmpc"]
+            )
             if not (m.completed and lmpc.completed):
                 print(f"| {track} | {name} | left at {m.progress:.0%} |", flush=True)
                 continue
@@ -168,8 +199,11 @@ def main(folder: Path, spec: str, names: list[str] | None = None) -> None:
 
 
 if __name__ == "__main__":
-    main(
-        Path(sys.argv[1]),
-        sys.argv[2] if len(sys.argv) > 2 else "",
-        sys.argv[3].split(",") if len(sys.argv) > 3 else None,
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("folder", type=Path, help="where the held-out tracks are written")
+    parser.add_argument(
+        "variants", nargs="?", default="", help="'NAME=FIELD:VALUE,...;...' (see the module's notes)"
     )
+    parser.add_argument("tracks", nargs="?", default=None, help="comma-separated held-out track names")
+    args = parser.parse_args()
+    main(args.folder, args.variants, None if args.tracks is None else args.tracks.split(","))

@@ -8,8 +8,10 @@ The figures of issue 11's note came from ``python benchmarks/residual_settings.p
 
 from __future__ import annotations
 
-import sys
+import argparse
 from dataclasses import replace
+
+from scenarios import with_controllers
 
 from rkmpc.control.learned.rkmpc import ResidualKoopmanMPC
 from rkmpc.control.learned.trust import TrustConfig
@@ -34,11 +36,12 @@ def main(track: str, cars: list[str]) -> None:
     print("|---|---|---|---|---|")
     for car in cars:
         scenario = load_scenario(track, car=None if car == "none" else car)
-        options, _ = learn_models(scenario, ModelPlan(controllers=("rkmpc",)))
+        models, _ = learn_models(scenario, ModelPlan(controllers=("rkmpc",)))
         _, lmpc = run_controller(scenario, RunSpec("lmpc"))
         for name, config in variants.items():
-            own = {**options["rkmpc"], "config": config}
-            result, m = run_controller(scenario, RunSpec("rkmpc"), controller_options=own)
+            result, m = run_controller(
+                with_controllers(scenario, rkmpc=config), RunSpec("rkmpc"), model=models["rkmpc"]
+            )
             if not (m.completed and lmpc.completed):
                 print(f"| {car} | {name} | off at {m.progress:.0%} | - | - |", flush=True)
                 continue
@@ -48,7 +51,10 @@ def main(track: str, cars: list[str]) -> None:
 
 
 if __name__ == "__main__":
-    main(
-        sys.argv[1] if len(sys.argv) > 1 else "builtin",
-        (sys.argv[2] if len(sys.argv) > 2 else "none,gym").split(","),
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("track", nargs="?", default="builtin", help="built-in name or centre-line CSV")
+    parser.add_argument(
+        "cars", nargs="?", default="none,gym", help="comma-separated zoo cars (none: the project's plant)"
     )
+    args = parser.parse_args()
+    main(args.track, args.cars.split(","))

@@ -6,7 +6,9 @@ studies and the step-time benchmark), or
 --data runs/study-data --bench runs/bench/step_times.json --faults runs/faults
 --out docs/results.md``. Figures are copied next to the document (in
 ``docs/results/``); a hand-written discussion, when ``--notes`` names one, is
-placed at the top verbatim. Every number comes from the JSON files read.
+placed at the top verbatim. Every number comes from the files read: the JSON results, and the
+studies' own Markdown tables (``study_tracks.md``, ``study_data.md``, written by ``rkmpc study``
+from the same result as its JSON).
 """
 
 from __future__ import annotations
@@ -15,12 +17,11 @@ import argparse
 import json
 import os
 import shutil
-import tempfile
 from pathlib import Path
 from typing import Any
 
 from rkmpc.analysis.tables import fault_table, markdown_table
-from rkmpc.experiments.studies.tracks import data_markdown, tracks_markdown
+from rkmpc.core.io import write_text_atomic
 
 #: The paper's Matlab step times (mean, max) in ms, from its Table I.
 PAPER_MS = {"lmpc": (2.38, 13.30), "nmpc": (13.68, 66.38), "kmpc": (3.78, 17.58), "rkmpc": (6.73, 16.14)}
@@ -98,9 +99,14 @@ def faults_section(faults: Path, fig_dir: Path, doc: Path) -> list[str]:
     return lines
 
 
+def _study_table(folder: Path, stem: str) -> str:
+    """The Markdown ``rkmpc study`` wrote beside ``STEM.json`` (the result's own tables)."""
+    _load(folder / f"{stem}.json")  # the result it was written with must be there and readable
+    return (folder / f"{stem}.md").read_text()
+
+
 def tracks_section(tracks: Path) -> list[str]:
     """Summary and per-track rows of ``rkmpc study tracks``."""
-    res = _load(tracks / "study_tracks.json")
     return [
         "## Every controller on every track (`make study-tracks`)",
         "",
@@ -108,19 +114,19 @@ def tracks_section(tracks: Path) -> list[str]:
         "against the LMPC on the same track and seed. Step times in this table come from parallel "
         "runs (two jobs on two cores) and are noisy; the benchmark below measures them alone.",
         "",
-        tracks_markdown(res).rstrip(),
+        _study_table(tracks, "study_tracks").rstrip(),
         "",
     ]
 
 
 def data_section(data: Path, fig_dir: Path, doc: Path) -> list[str]:
     """The data-volume study."""
-    res = _load(data / "study_data.json")
+    table = _study_table(data, "study_data")
     fig = _figure(data / "study_data.png", fig_dir, "study_data.png", doc)
     return [
         "## Training data volume: RKMPC against KMPC (`make study-data`)",
         "",
-        data_markdown(res).rstrip(),
+        table.rstrip(),
         "",
         f"![data volume]({fig})",
         "",
@@ -183,10 +189,7 @@ def main() -> None:
     if args.bench.is_file():
         lines += bench_section(args.bench)
     doc.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=doc.parent, prefix=f".{doc.name}.", suffix=".tmp")
-    with os.fdopen(fd, "w") as handle:
-        handle.write("\n".join(lines).rstrip() + "\n")
-    os.replace(tmp, doc)
+    write_text_atomic(doc, "\n".join(lines).rstrip() + "\n")
     print(f"wrote {doc}")
 
 

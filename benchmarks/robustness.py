@@ -17,15 +17,20 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+from scenarios import with_controllers
+
+from rkmpc.config.loader import load_preset
 from rkmpc.control.learned.adaptation import AdaptationConfig
 from rkmpc.control.learned.trust import TrustConfig
 from rkmpc.core.io import write_json_atomic
 from rkmpc.core.versions import versions
-from rkmpc.experiments.compare import RKMPC_CONFIG
 from rkmpc.experiments.models import ModelPlan, learn_models
 from rkmpc.experiments.runs import run_controller
 from rkmpc.sim.run import RunSpec
 from rkmpc.sim.scenario import load_scenario
+
+#: rkmpc's settings on the 1:10 car (the f1tenth preset's: the controller's defaults).
+RKMPC_CONFIG = load_preset("f1tenth").controllers.rkmpc
 
 #: (label, fault, car) of each case.
 CASES = (
@@ -64,13 +69,14 @@ def main() -> None:
     print("| " + " | ".join(head) + " |\n|" + "---|" * len(head), flush=True)
     for label, fault, car in CASES:
         scenario = load_scenario(args.track, car=car)
-        options, _ = learn_models(scenario, ModelPlan(controllers=("rkmpc",), seed=args.seed))
+        models, _ = learn_models(scenario, ModelPlan(controllers=("rkmpc",), seed=args.seed))
         _, lmpc = run_controller(scenario, RunSpec("lmpc", seed=args.seed, fault=fault))
         runs: dict[str, Any] = {}
         for name, config in VARIANTS.items():
-            own = {**options["rkmpc"], "config": config}
             result, metrics = run_controller(
-                scenario, RunSpec("rkmpc", seed=args.seed, fault=fault), controller_options=own
+                with_controllers(scenario, rkmpc=config),
+                RunSpec("rkmpc", seed=args.seed, fault=fault),
+                model=models["rkmpc"],
             )
             runs[name] = {"metrics": metrics.to_json(), "diagnostics": result.diagnostics}
         rows.append({"case": label, "fault": fault, "car": car, "lmpc": lmpc.to_json(), "rkmpc": runs})

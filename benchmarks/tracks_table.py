@@ -15,11 +15,14 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import argparse
 from concurrent.futures import ProcessPoolExecutor
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+from scenarios import with_controllers
+
 from rkmpc.analysis.tables import TABLE_COLUMNS, format_cell
-from rkmpc.core.io import write_json_atomic
+from rkmpc.core.io import write_json_atomic, write_text_atomic
 from rkmpc.core.versions import versions
 from rkmpc.experiments.runs import run_controller
 from rkmpc.sim.run import RunSpec
@@ -36,13 +39,10 @@ def run_track(job: tuple[str, str, float, bool]) -> tuple[str, str, dict[str, An
     """Run one controller on one track (a worker job)."""
     track, controller, scale, nmpc_sqp = job
     scenario = load_scenario(track, scale=scale)
-    options = None
     if nmpc_sqp and controller.startswith("nmpc"):
-        from rkmpc.control.nonlinear.nmpc import NMPCConfig
-
-        options = {"config": NMPCConfig(**FAST_NMPC)}
-    _result, metrics = run_controller(scenario, RunSpec(controller=controller), controller_options=options)
-    return scenario.track.name, controller, metrics
+        scenario = with_controllers(scenario, nmpc=replace(scenario.car.controllers.nmpc, **FAST_NMPC))
+    _result, metrics = run_controller(scenario, RunSpec(controller=controller))
+    return scenario.track.name, controller, metrics.to_json()
 
 
 def main() -> None:
@@ -80,7 +80,7 @@ def main() -> None:
         for controller, metrics in per.items():
             cells = [format_cell(metrics[k], fmt) for k, _, fmt in TABLE_COLUMNS]
             lines.append("| " + " | ".join([track, controller, *cells]) + " |")
-    (args.out / "tracks.md").write_text("\n".join(lines) + "\n")
+    write_text_atomic(args.out / "tracks.md", "\n".join(lines) + "\n")
     print(f"wrote {args.out / 'tracks.md'}")
 
 

@@ -37,20 +37,21 @@ def main() -> None:
     parser.add_argument("--out", type=Path, required=True, help="JSON file")
     args = parser.parse_args()
     plan = ModelPlan(controllers=("rkmpc",), seed=args.seed)
-    source_options, _ = learn_models(load_scenario(args.source), plan)
-    source_model = source_options["rkmpc"]["model"]
+    source_models, _ = learn_models(load_scenario(args.source), plan)
+    source_model = source_models["rkmpc"]
     rows: list[dict[str, Any]] = []
     for spec in expand_tracks(args.targets.split(",")):
         if track_label(spec) == track_label(args.source):
             continue
         scenario = load_scenario(spec)
-        own_options, _ = learn_models(scenario, plan)
+        own_models, _ = learn_models(scenario, plan)
         _, lmpc = run_controller(scenario, RunSpec("lmpc", seed=args.seed))
-        _, own = run_controller(
-            scenario, RunSpec("rkmpc", seed=args.seed), controller_options=own_options["rkmpc"]
+        _, own = run_controller(scenario, RunSpec("rkmpc", seed=args.seed), model=own_models["rkmpc"])
+        # The source's model was made on another track (scale): driving it here is the point, so the
+        # contract's track-scale mismatch is allowed (with a warning), never silently ignored.
+        _, transferred = run_controller(
+            scenario, RunSpec("rkmpc", seed=args.seed), model=source_model, allow_mismatch=True
         )
-        moved = {**own_options["rkmpc"], "model": source_model}
-        _, transferred = run_controller(scenario, RunSpec("rkmpc", seed=args.seed), controller_options=moved)
         row = {
             "track": scenario.track.name,
             "lmpc": lmpc.to_json(),

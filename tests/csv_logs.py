@@ -1,6 +1,6 @@
 """Synthetic CSV logs in the FrictionMaps logger's layout, with known defects (for the CSV-import tests).
 
-Imported by ``tests/learning/conftest.py`` and ``tests/test_cli_csv.py``; the real logs are read in
+Imported by ``tests/learning/conftest.py`` and ``tests/cli/test_cli_csv.py``; the real logs are read in
 place from ``../shared/real/f1tenth-car`` (:data:`REAL_LOGS`).
 """
 

@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from rkmpc.control import LMPCConfig, Observation, make_controller
+from rkmpc.control.settings import ControllerSettings
 from rkmpc.experiments.runs import run_controller
 from rkmpc.sim.run import RunSpec
 
@@ -36,7 +37,7 @@ def test_lmpc_solver_failure_falls_back_and_counts(builtin_scenario):
         "lmpc",
         builtin_scenario.reference,
         builtin_scenario.vehicle,
-        config=LMPCConfig(max_iterations=1),
+        settings=ControllerSettings(lmpc=LMPCConfig(max_iterations=1)),
     )
     ctrl.reset()
     path = builtin_scenario.reference.path
@@ -58,8 +59,8 @@ def test_lmpc_solver_failure_falls_back_and_counts(builtin_scenario):
 
 def test_lmpc_osqp_backend_matches_daqp(builtin_scenario):
     ref, veh = builtin_scenario.reference, builtin_scenario.vehicle
-    a = make_controller("lmpc", ref, veh, config=LMPCConfig(solver="daqp"))
-    b = make_controller("lmpc", ref, veh, config=LMPCConfig(solver="osqp"))
+    a = make_controller("lmpc", ref, veh, settings=ControllerSettings(lmpc=LMPCConfig(solver="daqp")))
+    b = make_controller("lmpc", ref, veh, settings=ControllerSettings(lmpc=LMPCConfig(solver="osqp")))
     p = ref.path.position(3.0)
     obs = Observation(x=float(p[0]), y=float(p[1]) + 0.1, yaw=float(ref.path.heading(3.0)) + 0.05, speed=2.0)
     ca, cb = a.step(obs), b.step(obs)

@@ -8,6 +8,7 @@ import pytest
 from rkmpc.analysis.metrics import lap_metrics
 from rkmpc.control import Observation, make_controller
 from rkmpc.control.learned.adaptation import AdaptationConfig
+from rkmpc.control.learned.residual_config import RKMPCConfig
 from rkmpc.control.learned.rkmpc import PaperResidualKoopmanMPC, ResidualKoopmanMPC
 from rkmpc.control.learned.trust import TrustConfig
 from rkmpc.core.errors import ParameterError
@@ -26,7 +27,7 @@ pytestmark = pytest.mark.slow
 
 
 def _train(data, wheelbase, kind, epochs, ratio=0.3):
-    model = recipe_of_kind(kind).default_model(seed=0, epochs=epochs)
+    model = recipe_of_kind(kind).koopman().default_model(seed=0, epochs=epochs)
     return train_model(
         data, wheelbase, TrainConfig(kind=kind, augment=AugmentConfig(ratio=ratio), model=model)
     )
@@ -84,8 +85,8 @@ def test_short_closed_loop_runs(builtin_scenario, learned, name):
 def test_rkmpc_and_lmpc_id_beat_lmpc_on_builtin(builtin_scenario, learned):
     sc = builtin_scenario
     _, lmpc = run_controller(sc, RunSpec("lmpc"))
-    _, lmpc_id = run_controller(sc, RunSpec("lmpc-id"), controller_options={"model": learned["lmpc-id"]})
-    _, rkmpc = run_controller(sc, RunSpec("rkmpc"), controller_options={"model": learned["rkmpc"]})
+    _, lmpc_id = run_controller(sc, RunSpec("lmpc-id"), model=learned["lmpc-id"])
+    _, rkmpc = run_controller(sc, RunSpec("rkmpc"), model=learned["rkmpc"])
     assert rkmpc["completed"] and lmpc_id["completed"]
     for key in ("lateral_error_mean_m", "heading_error_mean_rad", "steer_rate_mean_rad_s"):
         assert rkmpc[key] < 0.8 * lmpc[key], key
@@ -277,8 +278,17 @@ def test_lateral_acceleration_weight_must_not_be_negative():
 
 
 def test_rkmpc_paper_refuses_a_speed_priced_steering_weight(builtin_scenario):
+    # rkmpc-paper's settings have no speed-priced steering; rkmpc's, which have, are refused by it.
+    with pytest.raises(TypeError, match="lateral_accel_weight"):
+        replace(PaperResidualKoopmanMPC.default_config, lateral_accel_weight=0.01)
     sc = builtin_scenario
-    cfg = replace(PaperResidualKoopmanMPC.default_config, lateral_accel_weight=0.01)
+    paper = PaperResidualKoopmanMPC.default_config
+    cfg = RKMPCConfig(
+        heading_weight=paper.heading_weight,
+        speed_weight=paper.speed_weight,
+        steer_weight=paper.steer_weight,
+        lateral_accel_weight=0.01,
+    )
     model = SimpleNamespace(A_=np.eye(3), B_=np.zeros((3, 2)), C_=np.eye(3), lift=np.asarray)
-    with pytest.raises(ParameterError, match="rkmpc-paper: lateral_accel_weight"):
+    with pytest.raises(ParameterError, match="rkmpc-paper takes a ResidualMPCConfig, got RKMPCConfig"):
         PaperResidualKoopmanMPC(sc.reference, sc.vehicle, model, config=cfg)

@@ -3,6 +3,9 @@ import pytest
 
 from rkmpc.control.qp import QP_SOLVERS, make_qp
 
+#: The iteration budget of the tests' solvers (the MPCs' default).
+ITERATIONS = 200
+
 
 def _random_qp(seed: int, n: int = 12, m: int = 5):
     rng = np.random.default_rng(seed)
@@ -25,9 +28,9 @@ def _kkt_ok(x, H, f, lb, ub, A, lbA, ubA, tol=1e-4):
 @pytest.mark.parametrize("name", sorted(QP_SOLVERS))
 def test_backends_agree_and_update(name):
     H, f, lb, ub, A, lbA, ubA = _random_qp(0)
-    ref = make_qp("daqp")
+    ref = make_qp("daqp", max_iterations=ITERATIONS)
     ref.setup(H, f, lb, ub, A, lbA, ubA)
-    qp = make_qp(name)
+    qp = make_qp(name, max_iterations=ITERATIONS)
     qp.setup(H, f, lb, ub, A, lbA, ubA)
     r0 = qp.solve()
     assert r0.solved
@@ -47,7 +50,7 @@ def test_backends_agree_and_update(name):
 def test_unconstrained_optimum_matches_linear_solve():
     H, f, lb, _ub, A, lbA, ubA = _random_qp(2)
     big = 1e6 * np.ones_like(lb)
-    qp = make_qp("daqp")
+    qp = make_qp("daqp", max_iterations=ITERATIONS)
     qp.setup(H, f, -big, big, A, -1e6 * np.ones(len(lbA)), 1e6 * np.ones(len(ubA)))
     np.testing.assert_allclose(qp.solve().x, np.linalg.solve(H, -f), rtol=1e-7, atol=1e-9)
 
@@ -64,7 +67,7 @@ def test_iteration_limit_reports_failure():
 
 def test_unknown_solver():
     with pytest.raises(ValueError, match="known"):
-        make_qp("cplex")
+        make_qp("cplex", max_iterations=ITERATIONS)
 
 
 @pytest.mark.parametrize("m", [5, 0])
@@ -72,7 +75,10 @@ def test_factorized_daqp_matches_daqp_as_the_hessian_changes(m):
     # Factorising H with LAPACK and handing DAQP the problem in Cholesky coordinates
     # gives DAQP's own answer, with and without general constraints, across updates.
     H, f, lb, ub, A, lbA, ubA = _random_qp(4, m=m)
-    plain, fact = make_qp("daqp"), make_qp("daqp", factorize=True)
+    plain, fact = (
+        make_qp("daqp", max_iterations=ITERATIONS),
+        make_qp("daqp", max_iterations=ITERATIONS, factorize=True),
+    )
     for qp in (plain, fact):
         qp.setup(H, f, lb, ub, A, lbA, ubA)
     np.testing.assert_allclose(fact.solve().x, plain.solve().x, rtol=1e-9, atol=1e-12)
@@ -92,12 +98,12 @@ def test_factorized_daqp_matches_daqp_as_the_hessian_changes(m):
 
 def test_factorized_daqp_reports_an_indefinite_hessian_and_recovers():
     H, f, lb, ub, A, lbA, ubA = _random_qp(11)
-    qp = make_qp("daqp", factorize=True)
+    qp = make_qp("daqp", max_iterations=ITERATIONS, factorize=True)
     qp.setup(H, f, lb, ub, A, lbA, ubA)
     qp.update(H=-H)
     result = qp.solve()
     assert not result.solved and result.status == "nonconvex"
     qp.update(H=H, f=f)
-    ref = make_qp("daqp")
+    ref = make_qp("daqp", max_iterations=ITERATIONS)
     ref.setup(H, f, lb, ub, A, lbA, ubA)
     np.testing.assert_allclose(qp.solve().x, ref.solve().x, rtol=1e-9, atol=1e-12)

@@ -12,6 +12,7 @@ from rkmpc.control.guard import SpeedFloor
 from rkmpc.control.learned.residual_config import ResidualMPCConfig
 from rkmpc.control.linear.lmpc import LMPCConfig
 from rkmpc.control.nonlinear.nlp import NMPCConfig
+from rkmpc.control.settings import ControllerSettings
 from rkmpc.core.errors import ParameterError
 from rkmpc.core.observation import Observation
 from rkmpc.learning.identification import IdentifiedModel
@@ -61,8 +62,11 @@ def _first_speed(scenario, name: str, speed: float = 0.0, **options) -> tuple[fl
 def _holding(name: str, floor: SpeedFloor | None) -> dict:
     """Options under which ``name`` wants to hold 0 m/s, with the given floor (None: the default)."""
     extra = {} if floor is None else {"speed_floor": floor}
-    config_type = NMPCConfig if name.startswith("nmpc") else LMPCConfig
-    options: dict = {"config": config_type(**HOLD, **extra)}
+    if name.startswith("nmpc"):
+        settings = ControllerSettings(nmpc=NMPCConfig(**HOLD, **extra))
+    else:
+        settings = ControllerSettings(lmpc=LMPCConfig(**HOLD, **extra))
+    options: dict = {"settings": settings}
     if name == "lmpc-id":
         options["model"] = IdentifiedModel(0.158, 0.005, 1.0, 1.0, 100)
     if name == "kmpc":
@@ -90,11 +94,12 @@ def test_a_learned_correction_that_cancels_the_reference_stops_at_the_floor(buil
         sc.reference,
         sc.vehicle,
         model=model,
-        config=config,
-        lmpc_config=LMPCConfig(speed_floor=OFF),
+        settings=ControllerSettings(rkmpc_paper=config, lmpc=LMPCConfig(speed_floor=OFF)),
     )
     assert off.step(_observation(sc, v_ref)).speed == pytest.approx(sc.vehicle.drive.min_speed, abs=1e-9)
-    ctrl = make_controller("rkmpc-paper", sc.reference, sc.vehicle, model=model, config=config)
+    ctrl = make_controller(
+        "rkmpc-paper", sc.reference, sc.vehicle, model=model, settings=ControllerSettings(rkmpc_paper=config)
+    )
     speeds = []
     for _ in range(5):
         command = ctrl.step(_observation(sc, v_ref))
@@ -110,7 +115,11 @@ def test_kmpc_with_a_model_that_would_stop_the_car_commands_the_floor(builtin_sc
     speed, v_ref = _first_speed(sc, "kmpc", speed=3.0, model=_backwards(6))
     assert speed == pytest.approx(0.5 * v_ref, rel=1e-6)
     unfloored, _ = _first_speed(
-        sc, "kmpc", speed=3.0, model=_backwards(6), config=LMPCConfig(speed_floor=OFF)
+        sc,
+        "kmpc",
+        speed=3.0,
+        model=_backwards(6),
+        settings=ControllerSettings(lmpc=LMPCConfig(speed_floor=OFF)),
     )
     assert unfloored < 0.1 * v_ref
 

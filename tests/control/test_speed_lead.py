@@ -7,6 +7,7 @@ import pytest
 
 from rkmpc.control import make_controller
 from rkmpc.control.linear.lmpc import LMPCConfig
+from rkmpc.control.settings import ControllerSettings
 from rkmpc.core.errors import ParameterError
 from rkmpc.core.observation import Observation
 
@@ -32,8 +33,10 @@ def test_the_speed_asked_for_is_the_profiles_a_lead_later(builtin_scenario):
     sc = builtin_scenario
     s0 = _braking_point(sc)
     speed = float(sc.reference.profile.speed(s0))
-    plain = make_controller("lmpc", sc.reference, sc.vehicle, config=LMPCConfig())
-    led = make_controller("lmpc", sc.reference, sc.vehicle, config=LMPCConfig(speed_lead=0.5))
+    plain = make_controller("lmpc", sc.reference, sc.vehicle, settings=ControllerSettings(lmpc=LMPCConfig()))
+    led = make_controller(
+        "lmpc", sc.reference, sc.vehicle, settings=ControllerSettings(lmpc=LMPCConfig(speed_lead=0.5))
+    )
     first = plain.step(_on_path(sc, s0, speed))
     early = led.step(_on_path(sc, s0, speed))
     assert plain.fallback_count == 0 and led.fallback_count == 0

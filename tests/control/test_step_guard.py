@@ -16,6 +16,7 @@ from rkmpc.control import Command, Controller, Observation, make_controller
 from rkmpc.control.base import STATUS_CODES, STATUSES, AdmissibleErrors
 from rkmpc.control.nonlinear.nmpc import NMPCConfig
 from rkmpc.control.qp import QPResult
+from rkmpc.control.settings import ControllerSettings
 from rkmpc.core.errors import ParameterError
 from rkmpc.sim.closed_loop import SimConfig, simulate
 from rkmpc.vehicle.registry import make_plant
@@ -181,7 +182,9 @@ def test_an_lmpc_out_of_iterations_says_so(builtin_scenario, observations):
     from rkmpc.control.linear.lmpc import LMPCConfig
 
     sc = builtin_scenario
-    ctrl = make_controller("lmpc", sc.reference, sc.vehicle, config=LMPCConfig(max_iterations=1))
+    ctrl = make_controller(
+        "lmpc", sc.reference, sc.vehicle, settings=ControllerSettings(lmpc=LMPCConfig(max_iterations=1))
+    )
     ctrl.reset()
     statuses = set()
     for o in observations:
@@ -192,7 +195,9 @@ def test_an_lmpc_out_of_iterations_says_so(builtin_scenario, observations):
 
 def test_an_nmpc_out_of_iterations_says_so(builtin_scenario, observations):
     sc = builtin_scenario
-    ctrl = make_controller("nmpc", sc.reference, sc.vehicle, config=NMPCConfig(max_iterations=1))
+    ctrl = make_controller(
+        "nmpc", sc.reference, sc.vehicle, settings=ControllerSettings(nmpc=NMPCConfig(max_iterations=1))
+    )
     ctrl.reset()
     ctrl.step(replace(observations[0], yaw=observations[0].yaw + 0.5))
     assert ctrl.info.status == "iteration_limit"

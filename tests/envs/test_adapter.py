@@ -35,14 +35,15 @@ from rkmpc.learning.data.augmentation import AugmentConfig, local_frame_windows
 from rkmpc.learning.data.dataset import TransitionDataset
 from rkmpc.learning.koopman.model import KoopmanModel
 from rkmpc.learning.pipeline import TrainConfig, train_model, training_arrays
+from rkmpc.sim.build import build_controller
 from rkmpc.sim.closed_loop import SimConfig, simulate
 from rkmpc.sim.run import RunSpec, drive
-from rkmpc.sim.scenario import load_scenario, vehicle_preset
+from rkmpc.sim.scenario import load_scenario
 
 
-def _controller(scenario, name="lmpc", **options):
-    preset = vehicle_preset(scenario.vehicle_name).options_for(name)
-    return make_controller(name, scenario.reference, scenario.vehicle, **{**preset, **options})
+def _controller(scenario, name="lmpc", model=None):
+    """The controller as every command builds it: the car's settings, the model checked."""
+    return build_controller(name, scenario, model)
 
 
 @pytest.fixture(scope="module")
@@ -108,12 +109,12 @@ def test_pure_pursuit_and_the_residual_mpc_drive_through_the_adapter(builtin_sce
     """Any controller: one that plans with no period (given one) and a learned one (steering measured)."""
     sc = builtin_scenario
     env = F1TenthTrackEnv(sc)
-    for name, options in (("pp", {}), ("rkmpc-paper", {"model": small_paper_model})):
-        policy = ControllerPolicy(_controller(sc, name, **options), env.timestep, control_period=sc.dt)
+    for name, model in (("pp", None), ("rkmpc-paper", small_paper_model)):
+        policy = ControllerPolicy(_controller(sc, name, model), env.timestep, control_period=sc.dt)
         episode = run_episode(env, policy, seed=0, max_steps=600)  # 6 s
         assert episode.steps == 600 and not episode.terminated
         config = SimConfig(dt=sc.dt, max_time=6.0)
-        ref = simulate(sc.make_plant(), _controller(sc, name, **options), sc.track, sc.reference, config)
+        ref = simulate(sc.make_plant(), _controller(sc, name, model), sc.track, sc.reference, config)
         rows = len(episode.log) - 1
         np.testing.assert_allclose(episode.log["x"][:rows], ref.log["x"][:rows], atol=1e-6)
         np.testing.assert_allclose(episode.log["cmd_steer"][:rows], ref.log["cmd_steer"][:rows], atol=1e-6)

@@ -15,7 +15,6 @@ import pytest
 pytest.importorskip("gymnasium")
 pytest.importorskip("f1tenth_gym", reason="the F1TENTH gym v1.0.0 is not installed: `make f1tenth-gym`")
 
-from rkmpc.control import make_controller
 from rkmpc.core.errors import InputFileError, ParameterError
 from rkmpc.envs.adapter import run_episode
 from rkmpc.envs.f1tenth_gym import (
@@ -29,7 +28,7 @@ from rkmpc.envs.gym_map import DEFAULT_RESOLUTION
 from rkmpc.learning.data.augmentation import AugmentConfig
 from rkmpc.learning.koopman.model import KoopmanModel
 from rkmpc.learning.pipeline import TrainConfig, train_model
-from rkmpc.sim.scenario import vehicle_preset
+from rkmpc.sim.build import build_controller
 
 LAYOUTS = ("original", "dynamic_state")
 
@@ -42,7 +41,7 @@ def map_dir(builtin_scenario, tmp_path_factory):
 
 
 def _lmpc(scenario):
-    return make_controller("lmpc", scenario.reference, scenario.vehicle, **scenario.options_for("lmpc"))
+    return build_controller("lmpc", scenario)
 
 
 def _start(scenario):
@@ -147,8 +146,7 @@ def test_a_learned_controller_without_a_wheel_angle_falls_back_and_says_so(
     """rkmpc's model reads the wheel angle; the gym's default observation has none: every step is the
     LMPC's command, counted as ``guard`` and reported, not passed off as the residual MPC."""
     sc = builtin_scenario
-    options = {**vehicle_preset(sc.vehicle_name).options_for("rkmpc"), "model": small_residual_model}
-    controller = make_controller("rkmpc", sc.reference, sc.vehicle, **options)
+    controller = build_controller("rkmpc", sc, small_residual_model)
     env = make_gym_env(sc, map_dir)
     with caplog.at_level(logging.WARNING, logger="rkmpc.envs.adapter"):
         episode = run_episode(env, gym_policy(controller, env), options=_start(sc), max_steps=100)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import pytest
 
+from rkmpc.config.loader import load_preset
 from rkmpc.core.errors import ParameterError
 from rkmpc.experiments.compare import DEGRADE_THRESHOLD, CompareConfig, fault_effect
 
@@ -27,10 +28,36 @@ def test_fault_effect_classes(faulted, outcome, effect):
     assert fault_effect(NOMINAL, faulted, outcome) == effect
 
 
+def _car(**training):
+    return load_preset("f1tenth").with_training(**training)
+
+
 @pytest.mark.parametrize(
-    "kwargs",
-    [{"laps": 0}, {"seed": -1}, {"kmpc_samples": 10}, {"controllers": ()}, {"epochs": 0}, {"run_laps": 0}],
+    "make",
+    [
+        # The car's training settings (laps of data, seed, samples, epochs) are the car's: refused
+        # where the car is made.
+        lambda: CompareConfig(track="builtin", car=_car(data_laps=0)),
+        lambda: CompareConfig(track="builtin", car=_car(seed=-1)),
+        lambda: CompareConfig(track="builtin", car=_car(kmpc_samples=10)),
+        lambda: CompareConfig(track="builtin", car=_car(epochs=0)),
+        lambda: CompareConfig(track="builtin", controllers=()),
+        lambda: CompareConfig(track="builtin", run_laps=0),
+        lambda: CompareConfig(track="builtin", controllers=("lmpc", "mpc")),
+        lambda: CompareConfig(track="builtin", fault="ice"),
+        lambda: CompareConfig(track="builtin", car="f1tenth"),  # type: ignore[arg-type]
+    ],
 )
-def test_compare_config_rejects_bad_settings(kwargs):
+def test_compare_config_rejects_bad_settings(make):
     with pytest.raises(ParameterError):
-        CompareConfig(track="builtin", **kwargs)
+        make()
+
+
+def test_compare_config_takes_its_seed_and_plan_from_the_car():
+    car = _car(seed=3, data_laps=1, kmpc_samples=2000, epochs=2)
+    config = CompareConfig(track="builtin", car=car, controllers=("lmpc", "kmpc"))
+    plan = config.plan()
+    assert config.seed == 3
+    assert (plan.seed, plan.laps, plan.excitation_samples, plan.epochs) == (3, 1, 2000, 2)
+    assert plan.controllers == ("lmpc", "kmpc")
+    assert config.to_json()["car"] == car.to_json()

@@ -9,7 +9,6 @@ from dataclasses import replace
 import pytest
 
 from rkmpc.cli import main
-from rkmpc.control import make_controller
 from rkmpc.core.errors import ContractError, ContractWarning
 from rkmpc.experiments.compare import CompareConfig, compare
 from rkmpc.experiments.models import ModelPlan, learn_models
@@ -17,7 +16,8 @@ from rkmpc.learning.contract import CONTRACT_KEY, contract_of
 from rkmpc.learning.data.augmentation import AugmentConfig
 from rkmpc.learning.koopman.model import KoopmanModel
 from rkmpc.learning.pipeline import TrainConfig, train_model
-from rkmpc.vehicle.params import fullsize
+from rkmpc.sim.build import build_controller, check_model
+from rkmpc.sim.scenario import load_scenario
 
 
 def _config(dt: float | None = None) -> TrainConfig:
@@ -37,7 +37,8 @@ def _with_contract(model: KoopmanModel, path, **changes) -> str:
 def test_a_model_records_what_it_was_trained_with(small_paper_model, builtin_lap):
     contract = contract_of(small_paper_model.metadata_)
     assert contract.recorded
-    assert (contract.vehicle, contract.dt, contract.wheelbase, contract.scale) == (
+    assert (contract.vehicle, contract.plant, contract.dt, contract.wheelbase, contract.scale) == (
+        "f1tenth",
         "f1tenth",
         0.05,
         0.307,
@@ -87,33 +88,40 @@ def test_old_data_train_with_one_warning(builtin_lap):
 # ---------------------------------------------------------------------------- a model meets a car
 
 
-def test_make_controller_refuses_a_model_of_another_period_or_car(
+def test_build_controller_refuses_a_model_of_another_period_or_car(
     builtin_scenario, small_paper_model, tmp_path
 ):
+    # make_controller builds what it is given; the scenario's build_controller checks the model.
     sc = builtin_scenario
     fast = KoopmanModel.load(_with_contract(small_paper_model, tmp_path / "fast.npz", dt=0.01))
     with pytest.raises(ContractError, match=r"trained with dt = 0\.01 s; this run uses dt = 0\.05 s"):
-        make_controller("rkmpc-paper", sc.reference, sc.vehicle, model=fast)
+        build_controller("rkmpc-paper", sc, fast)
+    with pytest.warns(UserWarning, match="made at 1:10"):
+        full = load_scenario("builtin", vehicle="fullsize")
     with pytest.raises(ContractError, match="vehicle = 'f1tenth'; this run uses vehicle = 'fullsize'"):
-        make_controller("rkmpc-paper", sc.reference, fullsize(), model=small_paper_model)
+        build_controller("rkmpc-paper", full, small_paper_model)
+    with pytest.raises(ContractError, match="plant = 'f1tenth'; this run uses plant = 'gym'"):
+        build_controller("rkmpc-paper", load_scenario("builtin", car="gym"), small_paper_model)
     with pytest.warns(ContractWarning, match="dt"):
-        make_controller("rkmpc-paper", sc.reference, sc.vehicle, model=fast, allow_mismatch=True)
+        ctrl = build_controller("rkmpc-paper", sc, fast, allow_mismatch=True)
+    assert ctrl.model is fast
+    with pytest.raises(ContractError, match=r"fast\.npz was trained with dt = 0\.01 s"):
+        check_model(fast, sc, source="fast.npz")
+    with pytest.warns(ContractWarning, match="dt"):
+        (warning,) = check_model(fast, sc, source="fast.npz", allow_mismatch=True)
+    assert "(allowed)" in warning
 
 
-def test_make_controller_takes_an_old_model_with_a_warning(builtin_scenario, small_paper_model, tmp_path):
+def test_build_controller_takes_an_old_model_with_a_warning(builtin_scenario, small_paper_model, tmp_path):
     old = {k: v for k, v in small_paper_model.metadata_.items() if k != CONTRACT_KEY}
     small_paper_model.save(tmp_path / "old.npz", metadata=old)
     model = KoopmanModel.load(tmp_path / "old.npz")
     with pytest.warns(ContractWarning, match="made before contracts"):
-        ctrl = make_controller(
-            "rkmpc-paper", builtin_scenario.reference, builtin_scenario.vehicle, model=model
-        )
+        ctrl = build_controller("rkmpc-paper", builtin_scenario, model)
     assert ctrl.model is model
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        make_controller(
-            "rkmpc-paper", builtin_scenario.reference, builtin_scenario.vehicle, model=small_paper_model
-        )
+        build_controller("rkmpc-paper", builtin_scenario, small_paper_model)
 
 
 def test_a_model_file_of_another_track_scale_is_refused_before_driving(
@@ -125,10 +133,13 @@ def test_a_model_file_of_another_track_scale_is_refused_before_driving(
         learn_models(builtin_scenario, plan)
     assert "monza.npz was trained with scale = 0.1; this run uses scale = 1" in str(info.value)
     with pytest.warns(ContractWarning, match="scale"):
-        options, training = learn_models(builtin_scenario, replace(plan, allow_mismatch=True))
-    assert options["rkmpc-paper"]["allow_mismatch"] is True
+        models, training = learn_models(builtin_scenario, replace(plan, allow_mismatch=True))
+    assert contract_of(models["rkmpc-paper"].metadata_).scale == 0.1
     (warning,) = training.models["rkmpc-paper"].contract_warnings
     assert "scale = 0.1" in warning and "(allowed)" in warning
+    # The model is still of another scale: only a run that allows the mismatch drives it.
+    with pytest.raises(ContractError, match=r"scale = 0\.1; this run uses scale = 1"):
+        build_controller("rkmpc-paper", builtin_scenario, models["rkmpc-paper"])
 
 
 def test_an_allowed_mismatch_is_recorded_in_the_results_and_the_log(small_paper_model, tmp_path):

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import json
-from dataclasses import asdict
+from dataclasses import asdict, replace
 
 import numpy as np
 import pytest
@@ -13,16 +13,23 @@ from matplotlib.figure import Figure
 from rkmpc.analysis.metrics import LapMetrics
 from rkmpc.analysis.statistics import RunGroup, summarise_runs
 from rkmpc.analysis.study_plots import plot_data_study
+from rkmpc.config.loader import load_preset
 from rkmpc.core.errors import ParameterError
 from rkmpc.core.versions import versions
 from rkmpc.experiments.studies.common import expand_tracks
-from rkmpc.experiments.studies.data import DataStudyConfig, DataStudyResult, study_data, summarise_sizes
-from rkmpc.experiments.studies.tracks import (
-    TracksStudyConfig,
-    TracksStudyResult,
-    study_tracks,
-    tracks_markdown,
+from rkmpc.experiments.studies.data import (
+    DataJob,
+    DataStudy,
+    DataStudyConfig,
+    DataStudyResult,
+    summarise_sizes,
 )
+from rkmpc.experiments.studies.data_job import DataRun
+from rkmpc.experiments.studies.tracks import TracksStudy, TracksStudyConfig, TracksStudyResult
+from rkmpc.experiments.study import Parallel, StudyRun, run_study
+
+#: How a study made of hand-made rows ran (nowhere).
+HAND_RUN = StudyRun(parallel=Parallel(), versions=versions(), wall_s=0.0)
 
 
 def _metrics(lat: float, completed: bool = True, progress: float = 1.0, **extra: float) -> dict:
@@ -54,13 +61,19 @@ def _metrics(lat: float, completed: bool = True, progress: float = 1.0, **extra:
 def test_study_tracks_two_builtin_tracks_in_parallel():
     seen = []
     cfg = TracksStudyConfig(tracks=("builtin", "oval"), controllers=("pp", "lmpc"), seeds=(0,))
-    typed = study_tracks(cfg, n_jobs=2, progress=lambda o, done, total: seen.append((o.name, done, total)))
+    typed = run_study(
+        TracksStudy(cfg),
+        parallel=Parallel(n_jobs=2),
+        progress=lambda o, done, total: seen.append((o.name, done, total)),
+    )
     result = typed.to_json()
     assert sorted(s[0] for s in seen) == ["builtin seed 0", "oval seed 0"]
     assert [s[1:] for s in sorted(seen, key=lambda s: s[1])] == [(1, 2), (2, 2)]
     json.dumps(result, allow_nan=False)
-    assert result["tracks"] == ["builtin", "oval"] and result["seeds"] == [0]
-    assert result["controllers"] == ["pp", "lmpc"] and result["baseline"] == "lmpc"
+    config = result["config"]
+    assert config["tracks"] == ["builtin", "oval"] and config["seeds"] == [0]
+    assert config["controllers"] == ["pp", "lmpc"] and config["baseline"] == "lmpc"
+    assert config["car"] == load_preset("f1tenth").to_json()
     assert result["parallel"] == {"n_jobs": 2, "backend": "loky", "address": None}
     assert {"python", "numpy", "rkmpc", "torch", "joblib"} <= set(result["versions"])
     assert [j["track"] for j in result["jobs"]] == ["builtin", "oval"]
@@ -81,12 +94,12 @@ def test_study_tracks_two_builtin_tracks_in_parallel():
 
 @pytest.mark.slow
 def test_study_data_tiny_sizes_in_parallel():
-    cfg = DataStudyConfig(sizes=(350, 1400), seeds=(0,), epochs=1)
-    typed = study_data(cfg, n_jobs=2)
+    cfg = DataStudyConfig(sizes=(350, 1400), seeds=(0,), car=load_preset("f1tenth").with_training(epochs=1))
+    typed = run_study(DataStudy(cfg), parallel=Parallel(n_jobs=2))
     result = typed.to_json()
     json.dumps(result, allow_nan=False)
     assert result["sizes"] == [350, 1400] and result["seeds"] == [0]
-    assert result["config"]["epochs"] == 1
+    assert result["config"]["car"]["training"]["epochs"] == 1
     jobs = result["jobs"]
     assert [(j["controller"], j["size"]) for j in jobs] == [
         ("rkmpc", 350),
@@ -119,6 +132,7 @@ def test_study_data_tiny_sizes_in_parallel():
     assert "| rkmpc | 350 |" in md and "| kmpc | 1400 |" in md
     fig = plot_data_study(typed.series(), typed.baseline.lateral_error_mean_m, "data")
     assert isinstance(fig, Figure) and len(fig.axes) == 2
+    assert isinstance(typed.figure(), Figure)
 
 
 # ---------------------------------------------------------------------------
@@ -162,8 +176,9 @@ def test_aggregate_tracks_by_hand():
         ("b", "lmpc"),
     ]
     cfg = TracksStudyConfig(tracks=("builtin",), controllers=("lmpc", "rkmpc"))
-    result = TracksStudyResult(cfg, {}, versions(), 0.0, summary, run_rows, [])
-    md = tracks_markdown(result)
+    result = TracksStudyResult(config=cfg, run=HAND_RUN, summary=summary, rows=run_rows, jobs=[])
+    md = result.to_markdown()
+    assert result.figure() is None  # the tables say it
     assert "| rkmpc | 2/5 | 1 |" in md
     assert "FAILED: InputFileError: bad CSV" in md and "NO 40%" in md
     assert "| d | 0 | rkmpc | not driven |" in md
@@ -171,20 +186,41 @@ def test_aggregate_tracks_by_hand():
     assert no_base["rkmpc"].change_pct == {}
 
 
+def _data_run(controller: str, size: int, seed: int, metrics: dict) -> DataRun:
+    return DataRun(
+        controller=controller,
+        size=size,
+        seed=seed,
+        source={"kind": "lmpc_laps", "laps": 1, "outcome": "completed", "completed": True},
+        raw_count=size // 3,
+        augmented_count=size + 2 * seed,
+        valid_origins=size,
+        windows=size // 35,
+        ratio=0.3,
+        target_met=True,
+        model_options={},
+        train_report={},
+        data_s=0.5,
+        train_s=1.0,
+        fit_s=1.0,
+        lap_s=2.0,
+        metrics=LapMetrics.from_json(metrics),
+    )
+
+
 def test_aggregate_data_by_hand():
-    def job(controller, size, seed, lat=None, completed=True, ok=True):
-        if not ok:
-            return {"controller": controller, "size": size, "seed": seed, "ok": False, "metrics": {}}
-        return {
-            "controller": controller,
-            "size": size,
-            "seed": seed,
-            "ok": True,
-            "metrics": _metrics(lat, completed=completed, progress=1.0 if completed else 0.5),
-            "augmented_count": size + 2 * seed,
-            "raw_count": size // 3,
-            "train_s": 1.0,
-        }
+    def job(controller, size, seed, lat=None, completed=True, ok=True, error=None):
+        metrics = _metrics(lat, completed=completed, progress=1.0 if completed else 0.5) if ok else {}
+        return DataJob(
+            controller=controller,
+            size=size,
+            seed=seed,
+            ok=ok,
+            error=error,
+            traceback=None,
+            seconds=1.0,
+            run=_data_run(controller, size, seed, metrics) if ok else None,
+        )
 
     jobs = [
         job("rkmpc", 1000, 0, 0.02),
@@ -209,11 +245,15 @@ def test_aggregate_data_by_hand():
     assert (km["jobs"], km["completed"], km["failed_jobs"]) == (3, 2, 1)
     assert km["completion_rate"] == pytest.approx(2 / 3)  # the failed job counts as not completed
     assert km["lateral_error_mean_m"]["n"] == 2 and km["progress"]["n"] == 2
-    failed = [{**j, "error": "RuntimeError: boom"} if not j["ok"] else j for j in jobs]
+    failed = [replace(j, error="RuntimeError: boom") if not j.ok else j for j in jobs]
     cfg = DataStudyConfig(seeds=(0, 1, 2))
     baseline = LapMetrics.from_json(_metrics(0.04))
-    result = DataStudyResult(cfg, {}, versions(), 0.0, baseline, typed, failed)
-    json.dumps(result.to_json(), allow_nan=False)
+    result = DataStudyResult(config=cfg, run=HAND_RUN, baseline=baseline, summary=typed, jobs=failed)
+    record = result.to_json()
+    json.dumps(record, allow_nan=False)
+    assert [j["ok"] for j in record["jobs"]] == [j.ok for j in jobs]
+    assert record["jobs"][0]["augmented_count"] == 1000 and record["jobs"][3]["error"] == "RuntimeError: boom"
+    assert DataRun.from_json(record["jobs"][0]) == jobs[0].run  # the journal's round trip
     md = result.to_markdown()
     assert "| kmpc | 1000 | 1003 | 333 | 2/3 (1 failed) |" in md
     assert "- kmpc 1000 seed 0: RuntimeError: boom" in md
@@ -241,6 +281,7 @@ def test_configs_validate(tmp_path):
     cfg = TracksStudyConfig(tracks=["oval"], controllers="pp,lmpc", seeds=[1, 2])
     assert cfg.controllers == ("pp", "lmpc") and cfg.seeds == (1, 2)
     assert TracksStudyConfig(tracks="oval").tracks == ("oval",)
+    assert cfg.car == load_preset("f1tenth")
     bad_tracks = [
         ({"tracks": ()}, "empty"),
         ({"tracks": ("nowhere.csv",)}, "neither a built-in"),
@@ -248,26 +289,44 @@ def test_configs_validate(tmp_path):
         ({"tracks": ("oval",), "controllers": ("pp",)}, "baseline"),
         ({"tracks": ("oval",), "seeds": (0, 0)}, "repeat"),
         ({"tracks": ("oval",), "seeds": (-1,)}, "seeds"),
-        ({"tracks": ("oval",), "study_options": {"seed": 3}}, "study_options"),
         ({"tracks": ("oval",), "scale": 0.0}, "scale"),
-        ({"tracks": ("oval",), "vehicle": "bus"}, "vehicle"),
+        ({"tracks": ("oval",), "car": "bus"}, "TracksStudyConfig.car must be a CarConfig"),
+        ({"tracks": ("oval",), "fault": "ice"}, "unknown fault 'ice'"),
     ]
     for kwargs, match in bad_tracks:
         with pytest.raises(ParameterError, match=match):
             TracksStudyConfig(**kwargs)
     assert TracksStudyConfig(tracks=("oval",), controllers=("pp",), baseline=None).baseline is None
-    assert TracksStudyConfig(tracks=("oval",), study_options={"laps": 1}).study_options == {"laps": 1}
+    # The car's training settings reach every job; each job takes its own seed.
+    car = load_preset("f1tenth").with_training(data_laps=1, seed=9)
+    job = TracksStudyConfig(tracks=("oval",), car=car, seeds=(1, 2)).job_config("oval", 2)
+    assert job.car == car.with_training(seed=2) and job.plan().laps == 1 and job.seed == 2
+    study = TracksStudy(TracksStudyConfig(tracks=("oval", "builtin"), car=car, seeds=(1, 2)))
+    assert [j.name for j in study.jobs()] == [
+        "oval seed 1",
+        "oval seed 2",
+        "builtin seed 1",
+        "builtin seed 2",
+    ]
+    assert len({j.key for j in study.jobs()}) == 4
     bad_data = [
         ({"sizes": (10,)}, "below one window"),
         ({"sizes": ()}, "empty"),
         ({"controllers": ("lmpc",)}, "controllers"),
         ({"rkmpc_max_ratio": 1.5}, "rkmpc_max_ratio"),
         ({"min_laps": 3, "max_laps": 2}, "min_laps"),
-        ({"epochs": 0}, "epochs"),
         ({"track": "moon"}, "neither a built-in"),
+        ({"car": "f1tenth"}, "DataStudyConfig.car must be a CarConfig"),
+        ({"scale": -1.0}, "scale"),
     ]
     for kwargs, match in bad_data:
         with pytest.raises(ParameterError, match=match):
             DataStudyConfig(**kwargs)
+    with pytest.raises(ParameterError, match="epochs"):  # the car's: refused where the car is made
+        DataStudyConfig(car=load_preset("f1tenth").with_training(epochs=0))
     with pytest.raises(ParameterError, match="backend"):
-        study_data(DataStudyConfig(sizes=(100,), seeds=(0,)), backend="spark")
+        Parallel(backend="spark")
+    with pytest.raises(ParameterError, match="n_jobs"):
+        Parallel(n_jobs=0)
+    with pytest.raises(ParameterError, match="an address is for a dask or ray cluster"):
+        Parallel(address="tcp://1.2.3.4:8786")

@@ -13,10 +13,20 @@ from rkmpc.core.errors import ContractError, ContractWarning, InputFileError, Pa
 from rkmpc.learning.contract import CONTRACT_KEY, Provenance, contract_of
 from rkmpc.learning.data.dataset import TransitionDataset
 
-MADE = Provenance("f1tenth", 0.05, 0.307, 0.1, ("speed",), (0.5,), (3.5,))
+MADE = Provenance(
+    vehicle="f1tenth",
+    plant="f1tenth",
+    dt=0.05,
+    wheelbase=0.307,
+    scale=0.1,
+    features=("speed",),
+    state_min=(0.5,),
+    state_max=(3.5,),
+)
 #: Another value of each checked field, and how the message shows both.
 OTHER = {
     "vehicle": ("fullsize", "vehicle = 'f1tenth'", "vehicle = 'fullsize'"),
+    "plant": ("gym", "plant = 'f1tenth'", "plant = 'gym'"),
     "dt": (0.01, "dt = 0.05 s", "dt = 0.01 s"),
     "wheelbase": (2.579, "wheelbase = 0.307 m", "wheelbase = 2.579 m"),
     "scale": (1.0, "scale = 0.1", "scale = 1"),
@@ -43,7 +53,7 @@ def test_the_example_message_reads_as_a_sentence():
 
 
 def test_every_mismatch_is_named_at_once():
-    run = Provenance("fullsize", 0.01, 2.579, 1.0)
+    run = Provenance(vehicle="fullsize", plant="gym", dt=0.01, wheelbase=2.579, scale=1.0)
     with pytest.raises(ContractError) as info:
         MADE.check(run, source="data.npz", made="recorded")
     assert all(f"{name} = " in str(info.value) for name in OTHER)
@@ -75,7 +85,7 @@ def test_a_file_made_before_contracts_loads_and_warns_once():
         issued = old.check(MADE, source="old.npz")
     assert len(caught) == 1 and len(issued) == 1
     assert "old.npz was made before contracts" in issued[0]
-    assert "vehicle, wheelbase, scale" in issued[0]
+    assert "vehicle, plant, wheelbase, scale" in issued[0]
     # What it does know is still checked.
     with pytest.raises(ContractError, match=r"dt = 0\.05 s; this run uses dt = 0\.01 s"):
         old.check(replace(MADE, dt=0.01), source="old.npz")
@@ -89,6 +99,8 @@ def test_json_round_trip_and_bad_contracts():
         Provenance(dt=0.0)
     with pytest.raises(ParameterError, match="vehicle"):
         Provenance(vehicle="")
+    with pytest.raises(ParameterError, match=r"Provenance\.plant must be None or a non-empty string"):
+        Provenance(plant=0.05)  # type: ignore[arg-type]
     with pytest.raises(ParameterError, match="features"):
         Provenance(features=("speed",), state_min=(), state_max=())
     with pytest.raises(ParameterError, match="exceeds"):
@@ -127,7 +139,7 @@ def _data(dt: float = 0.05, metadata: dict | None = None) -> TransitionDataset:
 
 
 def test_a_data_set_carries_its_contract_through_its_file(tmp_path):
-    data = _data().with_contract(Provenance("f1tenth", wheelbase=0.307, scale=0.1))
+    data = _data().with_contract(Provenance(vehicle="f1tenth", wheelbase=0.307, scale=0.1))
     contract = data.contract
     assert contract.recorded and contract.dt == 0.05 and contract.vehicle == "f1tenth"
     assert contract.features == ("x", "y", "yaw", "speed")  # the unmeasured columns are left out
@@ -155,8 +167,8 @@ def test_a_contract_that_disagrees_with_the_data_is_refused(tmp_path):
 
 
 def test_concatenated_data_merge_their_contracts():
-    a = _data().with_contract(Provenance("f1tenth", wheelbase=0.307, scale=0.1))
-    b = _data().with_contract(Provenance("f1tenth", wheelbase=0.307, scale=1.0))
+    a = _data().with_contract(Provenance(vehicle="f1tenth", wheelbase=0.307, scale=0.1))
+    b = _data().with_contract(Provenance(vehicle="f1tenth", wheelbase=0.307, scale=1.0))
     joined = TransitionDataset.concatenate([a, b]).contract
     assert joined.recorded and joined.vehicle == "f1tenth" and joined.scale is None
     assert not TransitionDataset.concatenate([a, _data()]).contract.recorded

@@ -25,10 +25,10 @@ from rkmpc.learning.features import (
 )
 from rkmpc.learning.koopman.model import KoopmanModel
 from rkmpc.learning.pipeline import TrainConfig, train_model, training_arrays
-from rkmpc.learning.recipes import RECIPES, recipe_for, recipe_of_kind
+from rkmpc.learning.recipes import RECIPES, KoopmanLearner, recipe_for, recipe_of_kind
 from rkmpc.sim.collect import collect
 
-KOOPMAN_RECIPES = [r for r in RECIPES if r.learner == "koopman"]
+KOOPMAN_RECIPES = [r for r in RECIPES if isinstance(r.learner, KoopmanLearner)]
 
 
 @pytest.fixture(scope="module")
@@ -99,13 +99,15 @@ def test_a_feature_map_refuses_unknown_or_repeated_fields(names):
 
 def test_every_recipe_is_complete_and_unique():
     assert len({r.controller for r in RECIPES}) == len({r.kind for r in RECIPES}) == len(RECIPES)
+    assert [r.controller for r in KOOPMAN_RECIPES] == ["rkmpc-paper", "rkmpc", "kmpc"]
     for r in KOOPMAN_RECIPES:
-        model = r.default_model(seed=4, epochs=3)
+        model = r.koopman().default_model(seed=4, epochs=3)
         training = model.get_params()["lifting"]["training"]
         assert (training["seed"], training["epochs"]) == (4, 3)
-        assert r.augment(5).seed == 5 and r.augment(5).ratio == r.augment_ratio
+        augment = r.koopman().augment(5)
+        assert augment.seed == 5 and augment.ratio == r.koopman().augment_ratio
     with pytest.raises(ParameterError, match="identified"):
-        recipe_of_kind("identified").default_model(seed=0)
+        recipe_of_kind("identified").koopman()
     with pytest.raises(ParameterError, match="unknown model kind"):
         recipe_of_kind("quantum")
 

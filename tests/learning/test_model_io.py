@@ -13,9 +13,9 @@ from rkmpc.core.errors import InputFileError, ParameterError
 from rkmpc.learning.identification import IdentifiedModel
 from rkmpc.learning.io import load_identified, load_model, save_identified
 from rkmpc.learning.koopman.model import KoopmanModel
-from rkmpc.learning.recipes import model_kinds, recipe_of_kind
+from rkmpc.learning.recipes import KoopmanLearner, model_kinds, recipe_of_kind
 
-KOOPMAN_KINDS = [k for k in model_kinds() if recipe_of_kind(k).learner == "koopman"]
+KOOPMAN_KINDS = [k for k in model_kinds() if isinstance(recipe_of_kind(k).learner, KoopmanLearner)]
 
 
 def _identified() -> IdentifiedModel:

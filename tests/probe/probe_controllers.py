@@ -100,6 +100,7 @@ def solver_reasons(_: Probe) -> Evidence:
     from rkmpc.control.base import STATUSES
     from rkmpc.control.nonlinear.nmpc import NMPCConfig
     from rkmpc.control.qp import QPResult
+    from rkmpc.control.settings import ControllerSettings
     from rkmpc.sim.closed_loop import SimConfig, simulate
     from rkmpc.vehicle.registry import make_plant
 
@@ -109,7 +110,7 @@ def solver_reasons(_: Probe) -> Evidence:
     assert QPResult(x, False, "primal infeasible", 3).reason == "infeasible"
     assert QPResult(x, False, "maximum iterations reached", 3).reason == "iteration_limit"
     assert QPResult(np.full(2, np.nan), True, "optimal", 3).reason == "numerical"
-    ctrl = controller("nmpc", config=NMPCConfig(max_iterations=1))
+    ctrl = controller("nmpc", settings=ControllerSettings(nmpc=NMPCConfig(max_iterations=1)))
     obs = observations()[0]
     ctrl.step(replace(obs, yaw=obs.yaw + 0.5))
     assert ctrl.info.status == "iteration_limit", ctrl.info.status

@@ -12,7 +12,7 @@ from unittest import mock
 from probe_cases import CLEAR_ERROR, CORRECT, GRACEFUL, Evidence, Probe, case, caught_warnings, cli_error
 
 GROUP = "interruption and outputs"
-SIGINT_TEST = "tests/test_cli_outputs.py::test_sigint_during_an_nmpc_run_ends_it_with_nothing_written"
+SIGINT_TEST = "tests/cli/test_outputs.py::test_sigint_during_an_nmpc_run_ends_it_with_nothing_written"
 
 
 @case(

@@ -53,16 +53,16 @@ def test_figure_eight_two_laps(figure_eight: Scenario, name: str) -> None:
 
 @pytest.mark.slow
 def test_figure_eight_two_laps_every_controller(figure_eight_csv: FilePath, tmp_path: FilePath) -> None:
+    from rkmpc.config.loader import load_preset
     from rkmpc.experiments.compare import ALL_CONTROLLERS, CompareConfig, compare
 
     logs: dict[str, StepLog] = {}
     config = CompareConfig(
         track=str(figure_eight_csv),
+        car=load_preset("f1tenth").with_training(epochs=5, kmpc_samples=5000),
         scale=1.0,
         controllers=ALL_CONTROLLERS,
         run_laps=2,
-        epochs=5,
-        kmpc_samples=5000,
         cache_dir=str(tmp_path / "cache"),
     )
     result = compare(config, logs=logs)

@@ -15,6 +15,7 @@ import pytest
 from rkmpc.control import make_controller
 from rkmpc.control.guard import SpeedFloor
 from rkmpc.control.linear.lmpc import LMPCConfig
+from rkmpc.control.settings import ControllerSettings
 from rkmpc.sim.closed_loop import SimConfig, SimResult, simulate
 from rkmpc.sim.scenario import load_scenario
 from rkmpc.vehicle.registry import make_plant
@@ -70,6 +71,6 @@ def test_without_the_floor_rkmpc_paper_parks_in_the_corner(shared_tracks, small_
     # What the floor prevents: the correction cancels the reference and the car stops before the corner.
     scenario = _scenario(shared_tracks, "Catalunya")
     off = LMPCConfig(speed_floor=SpeedFloor(fraction=0.0))
-    result = _drive(scenario, "rkmpc-paper", model=small_paper_model, lmpc_config=off)
+    result = _drive(scenario, "rkmpc-paper", model=small_paper_model, settings=ControllerSettings(lmpc=off))
     assert float(np.min(result.log["speed"][-20:])) < 0.05
     assert result.progress * result.lap_length < BEFORE + 0.25

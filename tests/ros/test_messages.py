@@ -24,7 +24,7 @@ UPSTREAM = {
         "RIHS01_48ca7612a08d3bb72744fd98b71b7cf2ea24c6ad50fa4e1aa0bbad963c90d8cf"
     ),
 }
-DEFINITIONS = Path(__file__).resolve().parents[1] / "ros" / "ackermann_msgs" / "msg"
+DEFINITIONS = Path(__file__).resolve().parents[2] / "ros" / "ackermann_msgs" / "msg"
 
 
 def test_the_generated_type_descriptions_carry_upstreams_hashes():

@@ -13,9 +13,9 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from rkmpc.config.ros import LatencySettings, RosSettings, SafetySettings, Topics
 from rkmpc.control.base import Controller
 from rkmpc.core.observation import Command, Observation
-from rkmpc.ros.config import LatencySettings, NodeConfig, SafetySettings, Topics
 from rkmpc.ros.conversions import (
     command_from_drive,
     fill_drive,
@@ -56,10 +56,10 @@ class Scripted(Controller):
 
 @pytest.fixture
 def driver_for(builtin_scenario):
-    def make(config: NodeConfig | None = None) -> tuple[CarDriver, Scripted]:
+    def make(config: RosSettings | None = None) -> tuple[CarDriver, Scripted]:
         controller = Scripted()
         sc = builtin_scenario
-        return CarDriver(controller, sc.reference, sc.vehicle, config or NodeConfig()), controller
+        return CarDriver(controller, sc.reference, sc.vehicle, config or RosSettings()), controller
 
     return make
 
@@ -96,19 +96,19 @@ def test_waiting_running_timeout_and_back(driver_for, builtin_scenario):
 
 
 def test_a_too_large_error_stops_the_car_and_latches(driver_for, builtin_scenario):
-    driver, _ = driver_for(NodeConfig(safety=SafetySettings(max_lateral_error=0.5)))
+    driver, _ = driver_for(RosSettings(safety=SafetySettings(max_lateral_error=0.5)))
     driver.on_odometry(on_path(builtin_scenario, 1.0, offset=0.8), 0.0, 0.0)
     decision = driver.step(0.0, 0.0)
     assert decision.state == "tracking_error" and decision.command.speed == 0.0
     assert decision.lateral_error_m == pytest.approx(0.8, abs=1e-6)
     driver.on_odometry(on_path(builtin_scenario, 1.2), 0.05, 0.05)
     assert driver.step(0.05, 0.05).state == "tracking_error"  # latched
-    unlatched, _ = driver_for(NodeConfig(safety=SafetySettings(max_lateral_error=0.5, latch=False)))
+    unlatched, _ = driver_for(RosSettings(safety=SafetySettings(max_lateral_error=0.5, latch=False)))
     unlatched.on_odometry(on_path(builtin_scenario, 1.0, offset=0.8), 0.0, 0.0)
     assert unlatched.step(0.0, 0.0).state == "tracking_error"
     unlatched.on_odometry(on_path(builtin_scenario, 1.2), 0.05, 0.05)
     assert unlatched.step(0.05, 0.05).state == "running"
-    heading, _ = driver_for(NodeConfig(safety=SafetySettings(max_heading_error=0.3)))
+    heading, _ = driver_for(RosSettings(safety=SafetySettings(max_heading_error=0.3)))
     turned = on_path(builtin_scenario, 1.0)
     heading.on_odometry(replace(turned, yaw=turned.yaw + 0.5), 0.0, 0.0)
     assert heading.step(0.0, 0.0).state == "tracking_error"
@@ -128,7 +128,7 @@ def test_a_failing_controller_stops_the_car_is_counted_and_tried_again(driver_fo
     assert nan.state == "nonfinite_command" and nan.command == Command(0.0, 0.1)
     assert driver.nonfinite_commands == 1
     controller.command = Command(9.0, 0.2)
-    clipped, _ = driver_for(NodeConfig(safety=SafetySettings(max_speed=3.0)))
+    clipped, _ = driver_for(RosSettings(safety=SafetySettings(max_speed=3.0)))
     clipped.controller = controller
     clipped.on_odometry(on_path(builtin_scenario, 1.0), 0.0, 0.0)
     assert clipped.step(0.0, 0.0).command == Command(3.0, 0.2)
@@ -149,7 +149,7 @@ def test_watchdog_and_shutdown(driver_for, builtin_scenario):
 
 
 def test_lock_step_waits_for_the_wheel_angle_of_the_same_period(driver_for, builtin_scenario):
-    driver, controller = driver_for(NodeConfig(trigger="odometry", topics=Topics(steering="/steer")))
+    driver, controller = driver_for(RosSettings(trigger="odometry", topics=Topics(steering="/steer")))
     driver.on_odometry(on_path(builtin_scenario, 1.0), 0.0, 0.0)
     assert not driver.answerable()
     driver.on_steering(0.05)
@@ -164,7 +164,7 @@ def test_lock_step_waits_for_the_wheel_angle_of_the_same_period(driver_for, buil
 
 
 def test_wheel_angle_estimated_from_the_commands(driver_for, builtin_scenario):
-    driver, controller = driver_for(NodeConfig(steering_estimate=True))
+    driver, controller = driver_for(RosSettings(steering_estimate=True))
     driver.on_odometry(on_path(builtin_scenario, 1.0), 0.0, 0.0)
     driver.step(0.0, 0.0)
     driver.step(0.05, 0.05)
@@ -218,7 +218,7 @@ def test_propagation_uses_the_commands_that_act_in_the_window():
 
 
 def test_the_node_compensates_when_asked(driver_for, builtin_scenario):
-    config = NodeConfig(latency=LatencySettings(compensate=True, actuation=0.1))
+    config = RosSettings(latency=LatencySettings(compensate=True, actuation=0.1))
     driver, controller = driver_for(config)
     obs = on_path(builtin_scenario, 1.0)
     driver.on_odometry(obs, 0.0, 0.0)

@@ -1,4 +1,5 @@
-"""Car files in ``study pace``, ``learn-pace`` and ``study data``: flag > file > preset, recorded.
+"""Car files in ``study pace``, ``learn-pace`` and ``study data`` (``rkmpc.cli.study``,
+``rkmpc.cli.learn_pace``): flag > file > preset, recorded.
 
 Nothing trains here: the commands' settings are built from parsed arguments, and the one run of
 ``study data`` drives fakes (its worker and its LMPC lap).
@@ -7,7 +8,6 @@ Nothing trains here: the commands' settings are built from parsed arguments, and
 from __future__ import annotations
 
 import json
-from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -18,10 +18,10 @@ from rkmpc.analysis.metrics import LapMetrics
 from rkmpc.cli import build_parser, main
 from rkmpc.cli.learn_pace import learn_pace_config
 from rkmpc.cli.study import data_study_config, pace_study_config
-from rkmpc.control.pure_pursuit import PurePursuitConfig
+from rkmpc.config.loader import load_car_config, load_preset
+from rkmpc.experiments.studies.data_job import DataRun
 from rkmpc.experiments.studies.pace_rules import car_ladder, pace_ladder
-from rkmpc.sim.carfile import CarConfig, load_car_config
-from rkmpc.sim.scenario import load_scenario, vehicle_preset
+from rkmpc.sim.scenario import load_scenario
 
 CONFIGS = Path(__file__).resolve().parents[2] / "configs"
 RACE = CONFIGS / "f1tenth-race.toml"
@@ -57,8 +57,9 @@ def _race_with_training(tmp_path: Path) -> Path:
 def test_each_command_reads_the_race_pace_file(command):
     race = load_car_config(RACE)
     settings = _settings(command, "--config", str(RACE))
-    assert settings.vehicle == "f1tenth" and settings.car_config.source == str(RACE.resolve())
-    assert settings.car_config.limits == race.limits
+    assert settings.car.preset == "f1tenth" and settings.car.source == str(RACE.resolve())
+    assert settings.car == race
+    assert settings.car.limits == race.limits
     assert _limits(command, settings) == race.limits  # the ladder starts at the file's own pace
     if command != "study data":
         assert settings.paces == car_ladder(race) and settings.paces[0] == (6.0, 5.0)
@@ -68,12 +69,13 @@ def test_each_command_reads_the_race_pace_file(command):
 @pytest.mark.parametrize("command", COMMANDS)
 def test_the_files_training_settings_reach_the_study(command, tmp_path):
     settings = _settings(command, "--config", str(_race_with_training(tmp_path)))
-    assert settings.epochs == 4 and settings.car_config.training.epochs == 4
+    assert settings.car.training.epochs == 4
     if command == "study data":  # it sizes its own data; the seeds are --seeds
         assert settings.seeds == (0, 1, 2)
     else:
-        assert (settings.seed, settings.laps) == (3, 1)
-        assert (settings.car_config.training.seed, settings.car_config.training.data_laps) == (3, 1)
+        assert (settings.car.training.seed, settings.car.training.data_laps) == (3, 1)
+    if command == "study pace":
+        assert settings.seed == 3
 
 
 @pytest.mark.parametrize("command", COMMANDS)
@@ -81,14 +83,14 @@ def test_flags_win_over_the_file(command, tmp_path):
     path = _race_with_training(tmp_path)
     if command == "study data":
         settings = _settings(command, "--config", str(path), "--epochs", "9", "--max-speed", "4.5")
-        assert settings.epochs == 9 and settings.car_config.training.epochs == 9
+        assert settings.car.training.epochs == 9
         assert _limits(command, settings) == load_car_config(path).limits.at_pace(None, 4.5)
     else:
         laps = "--data-laps" if command == "study pace" else "--laps"
         given = ("--seed", "7", "--epochs", "9", laps, "2", "--start", "4:3.5", "--steps", "1")
         settings = _settings(command, "--config", str(path), *given)
-        assert (settings.seed, settings.epochs, settings.laps) == (7, 9, 2)
-        assert settings.car_config.training.seed == 7
+        training = settings.car.training
+        assert (training.seed, training.epochs, training.data_laps) == (7, 9, 2)
         assert settings.paces == ((4.0, 3.5), (4.5, 4.0))
         # At the flag's pace, braking and traction scale from the file's limits, the rest stays.
         assert _limits(command, settings) == load_car_config(path).limits.at_pace(4.0, 3.5)
@@ -112,28 +114,29 @@ def test_a_bad_file_is_refused_naming_the_file_and_the_key(command, tmp_path, ca
 
 @pytest.mark.parametrize("vehicle", ["f1tenth", "fullsize"])
 def test_without_a_file_the_settings_are_the_presets_as_before(vehicle):
-    assert car_ladder(CarConfig.from_preset(vehicle)) == pace_ladder(vehicle)
+    assert car_ladder(load_preset(vehicle)) == pace_ladder(vehicle)
     pace = _settings("study pace", "--vehicle", vehicle)
-    assert pace.paces == pace_ladder(vehicle) and pace.vehicle == vehicle
-    assert (pace.seed, pace.laps, pace.epochs, pace.kmpc_samples) == (0, 2, None, 50_000)
-    assert replace(pace.car_config, training=CarConfig.from_preset(vehicle).training) == (
-        CarConfig.from_preset(vehicle)
-    )
-    assert pace.car_config.source is None
+    assert pace.paces == pace_ladder(vehicle) and pace.car.preset == vehicle
+    training = pace.car.training
+    assert (training.seed, training.data_laps, training.epochs, training.kmpc_samples) == (0, 2, None, 50_000)
+    assert pace.car == load_preset(vehicle)
+    assert pace.car.source is None
     learn = _settings("learn-pace")
-    assert learn.paces == pace_ladder("f1tenth") and (learn.seed, learn.laps, learn.epochs) == (0, 2, None)
+    training = learn.car.training
+    assert learn.paces == pace_ladder("f1tenth")
+    assert (training.seed, training.data_laps, training.epochs) == (0, 2, None)
 
 
 def test_the_preset_as_a_car_config_is_the_scenario_of_before():
     pace = (5.0, 4.5)
     settings = _settings("study pace")
     filed = settings.scenario("builtin", pace)
-    plain = load_scenario("builtin", limits=vehicle_preset("f1tenth").limits.at_pace(*pace))
-    assert (filed.limits, filed.vehicle, filed.car) == (plain.limits, plain.vehicle, plain.car)
-    for name in ("lmpc", "lmpc-id", "kmpc", "rkmpc", "rkmpc-paper", "nmpc-dynamic"):
-        assert filed.options_for(name) == plain.options_for(name), name
-    # Pure pursuit gets its default settings spelled out (the preset gives none).
-    assert filed.options_for("pp") == {**plain.options_for("pp"), "config": PurePursuitConfig()}
+    plain = load_scenario("builtin", limits=load_preset("f1tenth").limits.at_pace(*pace))
+    assert (filed.limits, filed.vehicle, filed.zoo_car) == (plain.limits, plain.vehicle, plain.zoo_car)
+    assert filed.car == plain.car and filed.dt == plain.dt
+    # Every controller is built from the same settings (the car's, at the scenario's period).
+    assert filed.car.controllers.with_period(filed.dt) == plain.car.controllers.with_period(plain.dt)
+    assert filed.provenance() == plain.provenance()
 
 
 def _lap() -> LapMetrics:
@@ -162,10 +165,27 @@ def test_study_data_drives_the_files_car_and_records_it(tmp_path, monkeypatch):
 
     def data_job(cfg, controller, size, seed):
         seen.append(cfg.scenario().limits)
-        metrics = _lap().to_json()
-        return {"raw_count": size, "augmented_count": size, "train_s": 0.1, "metrics": metrics}
+        return DataRun(
+            controller=controller,
+            size=size,
+            seed=seed,
+            source={"kind": "lmpc_laps", "laps": 1, "outcome": "completed", "completed": True},
+            raw_count=size,
+            augmented_count=size,
+            valid_origins=size,
+            windows=size // 35,
+            ratio=0.3,
+            target_met=True,
+            model_options={},
+            train_report={},
+            data_s=0.1,
+            train_s=0.1,
+            fit_s=0.1,
+            lap_s=0.1,
+            metrics=_lap(),
+        )
 
-    def run_controller(scenario, spec, controller_options=None):
+    def run_controller(scenario, spec, *, model=None, allow_mismatch=False):
         seen.append(scenario.limits)
         return None, _lap()
 
@@ -175,6 +195,6 @@ def test_study_data_drives_the_files_car_and_records_it(tmp_path, monkeypatch):
     argv = ["study", "data", "--config", str(RACE), "--sizes", "1000", "--seeds", "0", "--jobs", "1"]
     assert main([*argv, "--controllers", "rkmpc", "--epochs", "2", "--out", str(out)]) == 0
     assert seen == [race.limits, race.limits]  # the worker's car and the LMPC's
-    recorded = json.loads((out / "study_data.json").read_text())["config"]["car_config"]
+    recorded = json.loads((out / "study_data.json").read_text())["config"]["car"]
     assert recorded["file"] == str(RACE.resolve()) and len(recorded["sha256"]) == 64
     assert recorded["limits"]["lateral_accel"] == 6.0 and recorded["training"]["epochs"] == 2

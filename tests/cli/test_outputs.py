@@ -17,7 +17,7 @@ from rkmpc.core.errors import OutputError, raise_if_interrupted
 from rkmpc.core.interrupt import interruptible
 from rkmpc.core.io import check_output_file, output_folder, write_text_atomic
 
-SRC = Path(__file__).resolve().parents[1] / "src"
+SRC = Path(__file__).resolve().parents[2] / "src"
 MARKERS = ("results.json",)
 
 

@@ -14,9 +14,10 @@ import rkmpc.experiments.studies.learn_pace as learn_mod
 import rkmpc.experiments.studies.pace_job as job_mod
 from rkmpc.analysis.metrics import LapMetrics
 from rkmpc.analysis.study_plots import plot_learn_pace, plot_pace_study
+from rkmpc.config.loader import load_preset
 from rkmpc.core.errors import ParameterError
-from rkmpc.experiments.studies.learn_pace import LearnPaceConfig, learn_pace
-from rkmpc.experiments.studies.pace import study_pace
+from rkmpc.experiments.studies.learn_pace import LearnPaceConfig, LearnPaceStudy
+from rkmpc.experiments.studies.pace import PaceStudy, PaceStudyResult
 from rkmpc.experiments.studies.pace_job import PaceStep, PaceStudyConfig, pace_job
 from rkmpc.experiments.studies.pace_rules import (
     MAX_FALLBACK_SHARE,
@@ -25,8 +26,18 @@ from rkmpc.experiments.studies.pace_rules import (
     lap_verdict,
     pace_ladder,
 )
+from rkmpc.experiments.study import run_study
 
 LADDER = ((4.0, 3.5), (5.0, 4.0), (6.0, 5.0), (7.0, 6.0), (8.0, 7.0))
+
+
+def study_pace(cfg: PaceStudyConfig) -> PaceStudyResult:
+    return run_study(PaceStudy(cfg))
+
+
+def learn_pace(cfg: LearnPaceConfig):
+    return run_study(LearnPaceStudy(cfg))
+
 
 # ---------------------------------------------------------------------------
 # the ladder and the clean-lap rule
@@ -84,7 +95,18 @@ def test_configs_refuse_bad_settings():
         LearnPaceConfig(controller="kmpc")
     with pytest.raises(ParameterError, match="at least one faster"):
         LearnPaceConfig(paces=((4.0, 3.5),))
+    with pytest.raises(ParameterError, match=r"PaceStudyConfig\.car must be a CarConfig"):
+        PaceStudyConfig(tracks=("builtin",), car="f1tenth")  # type: ignore[arg-type]
+    with pytest.raises(ParameterError, match=r"LearnPaceConfig\.scale"):
+        LearnPaceConfig(scale=-1.0)
     assert PaceStudyConfig(tracks="builtin").ladder == pace_ladder("f1tenth")
+    # The car's own pace starts its ladder; its training settings are the study's.
+    fast = load_preset("f1tenth").at_pace(6.0, 5.0).with_training(seed=4)
+    cfg = PaceStudyConfig(tracks="builtin", car=fast)
+    assert cfg.ladder[0] == (6.0, 5.0) and cfg.seed == 4
+    assert cfg.scenario("builtin", (5.0, 4.5)).limits == fast.limits.at_pace(5.0, 4.5)
+    learn = LearnPaceConfig(car=fast)
+    assert learn.study().car == fast and learn.study().paces == learn.paces
 
 
 # ---------------------------------------------------------------------------
@@ -127,6 +149,16 @@ class _Data:
         return f"{self.who}@{self.pace}"
 
 
+@dataclass
+class _Record:
+    """What the stand-in learner says it made (a ModelRecord's JSON)."""
+
+    kind: str
+
+    def to_json(self) -> dict[str, Any]:
+        return {"kind": self.kind}
+
+
 class _Pool:
     @staticmethod
     def concatenate(parts: list[_Data]) -> _Data:
@@ -158,19 +190,18 @@ def synthetic(monkeypatch):
     """LMPC clean up to 4 m/s^2, the learned controller up to 6: records every call."""
     calls: dict[str, list[Any]] = {"record": [], "train": []}
 
-    def record(scenario, spec, controller_options=None):
+    def record(scenario, spec, *, model=None):
         lateral = scenario.limits.lateral_accel
         clean = lateral <= (4.0 if spec.controller == "lmpc" else 6.0)
-        model = None if controller_options is None else controller_options["model"]
         calls["record"].append((spec.controller, lateral, model))
         result = _Result(clean, "completed" if clean else "off_track", 2.0 if clean else 0.5)
         return result, _Data(clean, spec.controller, lateral)
 
-    def train_on(data, scenario, recipe, *, seed, cache, epochs):
-        calls["train"].append((scenario.limits.lateral_accel, len(data)))
-        return {"model": f"model@{scenario.limits.lateral_accel:g}"}, {"kind": recipe.kind}
+    def make_model(recipe, scenario, data, data_key, *, seed, epochs=None, cache=None, say=None):
+        calls["train"].append((scenario.limits.lateral_accel, len(data())))
+        return f"model@{scenario.limits.lateral_accel:g}", _Record(recipe.kind)
 
-    def run_controller(scenario, spec, controller_options=None):
+    def run_controller(scenario, spec, *, model=None, allow_mismatch=False):
         lateral = scenario.limits.lateral_accel
         clean = lateral <= (4.0 if spec.controller == "lmpc" else 6.0)
         result = _Result(clean, "completed" if clean else "off_track", 1.0 if clean else 0.5)
@@ -178,7 +209,7 @@ def synthetic(monkeypatch):
 
     for mod in (job_mod, learn_mod):
         monkeypatch.setattr(mod, "record", record)
-        monkeypatch.setattr(mod, "train_on", train_on)
+        monkeypatch.setattr(mod, "make_model", make_model)
     monkeypatch.setattr(job_mod, "run_controller", run_controller)
     monkeypatch.setattr(learn_mod, "TransitionDataset", _Pool)
     monkeypatch.setattr(learn_mod, "lap_metrics", lambda result, laps: _metrics(result.completed, 5.0))
@@ -249,13 +280,13 @@ def test_learn_pace_pools_clean_laps_and_stops_at_an_unclean_one(synthetic):
 def test_the_cli_climbs_from_the_car_files_pace_and_records_the_file(synthetic, tmp_path):
     from rkmpc.cli import main
 
-    race = Path(__file__).resolve().parents[2] / "configs" / "f1tenth-race.toml"
+    race = Path(__file__).resolve().parents[3] / "configs" / "f1tenth-race.toml"
     out = tmp_path / "pace"
     argv = ["study", "pace", "--tracks", "builtin", "--controllers", "rkmpc", "--config", str(race)]
     assert main([*argv, "--steps", "2", "--seed", "5", "--jobs", "1", "--out", str(out)]) == 0
     data = json.loads((out / "study_pace.json").read_text())
     assert data["ladder"] == [[6.0, 5.0], [6.5, 5.5], [7.0, 6.0]]  # from the file's own pace
-    car = data["config"]["car_config"]
+    car = data["config"]["car"]
     assert car["file"] == str(race.resolve()) and car["limits"]["brake_decel"] == 3.75
     assert car["training"]["seed"] == 5 == data["seed"]  # the flag's
     # the synthetic rkmpc is clean up to 6 m/s^2: the file's pace, then the climb stops
@@ -265,8 +296,8 @@ def test_the_cli_climbs_from_the_car_files_pace_and_records_the_file(synthetic, 
     assert main([*argv, "--laps", "3", "--out", str(learn)]) == 0
     data = json.loads((learn / "learn_pace.json").read_text())
     assert [it["pace"] for it in data["iterations"]] == [[4.0, 3.5], [5.0, 4.0], [6.0, 4.5]]
-    car = data["config"]["car_config"]
-    assert car["file"] == str(race.resolve()) and car["training"]["data_laps"] == 3 == data["config"]["laps"]
+    car = data["config"]["car"]
+    assert car["file"] == str(race.resolve()) and car["training"]["data_laps"] == 3  # the flag's
 
 
 # ---------------------------------------------------------------------------
@@ -284,7 +315,7 @@ def test_small_pace_study_on_the_builtin_track():
         tracks=("builtin",),
         controllers=("lmpc", "rkmpc"),
         paces=((4.0, 3.5), (6.0, 5.0)),
-        epochs=2,
+        car=load_preset("f1tenth").with_training(epochs=2),
         use_cache=False,
     )
     result = study_pace(cfg)
@@ -340,10 +371,7 @@ def test_a_journal_resumes_the_pace_study_and_widens_it(synthetic, tmp_path, cap
     # Another seed is another study: refused before anything runs, naming the setting.
     assert main([*argv, "--controllers", "rkmpc", "--seed", "3", "--out", str(tmp_path / "c")]) != 0
     err = capsys.readouterr().err
-    assert (
-        "differing: settings.car_config.training.seed, settings.seed)" in err
-        and not (tmp_path / "c").exists()
-    )
+    assert "differing: settings.car.training.seed)" in err and not (tmp_path / "c").exists()
 
 
 def test_steps_read_back_from_the_result_file_are_the_steps(synthetic):

@@ -1,7 +1,8 @@
 """``rkmpc sim-node`` and ``rkmpc node`` together on loopback: a lap over ROS 2, and a dead car.
 
 Both run as their own processes through the command line, as on a car: the whole path is tested
-(argument parsing, the per-car YAML, DDS discovery between processes, shutdown on SIGINT), and
+(argument parsing, the car file every command reads with its ``[ros]`` section and ROS-parameter
+overrides of it, DDS discovery between processes, shutdown on SIGINT), and
 killing the simulated car is a real loss of the odometry's publisher. Discovery is limited to
 this machine and each test has its own domain id. Every wait below is a bound against a hang,
 never what an assertion measures: the lap runs in lock-step, so its result does not depend on
@@ -28,7 +29,9 @@ pytest.importorskip("ackermann_msgs", reason="ackermann_msgs is not built (make 
 
 pytestmark = pytest.mark.filterwarnings("ignore:module 'sre_:DeprecationWarning")
 
-SRC = Path(__file__).resolve().parents[1] / "src"
+SRC = Path(__file__).resolve().parents[2] / "src"
+#: The repository's car file: the one `rkmpc run --config` takes drives the simulated car over ROS.
+REPO_CAR = Path(__file__).resolve().parents[2] / "configs" / "f1tenth.toml"
 #: Upper bound of any wait (s): a hang fails the test instead of stalling CI.
 HANG = 300.0
 
@@ -80,13 +83,18 @@ STEERING = "/rkmpc/steering"
 
 @pytest.fixture(scope="module")
 def lap(tmp_path_factory):
-    """A lap of the built-in track over ROS 2 in lock-step with the LMPC, recorded to a bag by the node."""
+    """A lap of the built-in track over ROS 2 in lock-step with the LMPC, recorded to a bag by the node.
+
+    The node reads the repository's car file (``rkmpc node --config configs/f1tenth.toml``, the file
+    ``rkmpc run --config`` takes); ROS parameters set the lock-step trigger and the wheel-angle topic
+    over its ``[ros]`` section.
+    """
     folder = tmp_path_factory.mktemp("lap")
     env = ros_environment(folder / "ros-log", "lap")
-    car = folder / "car.yaml"
-    car.write_text(f"controller: lmpc\ntrigger: odometry\ntopics: {{steering: {STEERING}}}\n")
     node_log, sim_log = folder / "node.log", folder / "sim.log"
-    node_args = ["node", "--config", str(car), "--out", str(folder / "node"), "--record", str(folder / "bag")]
+    node_args = ["node", "--config", str(REPO_CAR), "--controller", "lmpc", "--out", str(folder / "node")]
+    node_args += ["--record", str(folder / "bag")]
+    node_args += ["--ros-args", "-p", "trigger:=odometry", "-p", f"topics.steering:={STEERING}"]
     node = start(node_args, env, node_log)
     try:
         sim_args = ["sim-node", "--clock", "lockstep", "--laps", "1", "--steering-topic", STEERING]
@@ -105,14 +113,44 @@ def lap(tmp_path_factory):
     return folder
 
 
+def test_the_node_drove_with_the_repos_car_file_and_the_ros_parameters(lap):
+    import hashlib
+
+    summary = json.loads((lap / "node" / "node_summary.json").read_text())
+    car = summary["car"]
+    assert car["file"] == str(REPO_CAR.resolve())
+    assert car["sha256"] == hashlib.sha256(REPO_CAR.read_bytes()).hexdigest()
+    assert car["vehicle"]["preset"] == "f1tenth" and car["controllers"]["lmpc"]["horizon"] == 30
+    # The ROS parameters set the [ros] keys they name; the rest is the file's (its defaults).
+    config = summary["config"]
+    assert (config["trigger"], config["topics.steering"]) == ("odometry", STEERING)
+    assert (config["rate_hz"], config["topics.odometry"], config["topics.drive"]) == (
+        20.0,
+        "/ego_racecar/odom",
+        "/drive",
+    )
+    assert car["ros"]["trigger"] == "odometry" and car["ros"]["topics"]["steering"] == STEERING
+    assert summary["task"] == {
+        "track": "builtin",
+        "raceline": None,
+        "scale": None,
+        "controller": "lmpc",
+        "model": None,
+        "allow_mismatch": False,
+    }
+    assert summary["controller_errors"] == 0 and summary["nonfinite_commands"] == 0
+
+
 def test_a_lap_over_ros_in_lock_step_matches_the_in_process_run(lap):
     from rkmpc.analysis.metrics import lap_metrics
+    from rkmpc.config.loader import load_car_config
     from rkmpc.sim.run import RunSpec, drive
-    from rkmpc.sim.scenario import load_scenario
+    from rkmpc.sim.scenario import Scenario
 
     summary = json.loads((lap / "sim" / "summary.json").read_text())
     over_ros = summary["metrics"]
-    in_process = lap_metrics(drive(load_scenario("builtin"), RunSpec("lmpc")))
+    # The same car file driven in-process (`rkmpc run --config configs/f1tenth.toml`).
+    in_process = lap_metrics(drive(Scenario.from_car(load_car_config(REPO_CAR), "builtin"), RunSpec("lmpc")))
     assert summary["outcome"] == "completed" and over_ros["completed"]
     assert over_ros["lateral_error_mean_m"] == pytest.approx(in_process.lateral_error_mean_m, rel=0.2)
     assert over_ros["heading_error_mean_rad"] == pytest.approx(in_process.heading_error_mean_rad, rel=0.2)
@@ -173,8 +211,8 @@ def test_the_node_stops_the_car_when_its_odometry_dies(tmp_path, ros_env, monkey
     from rclpy.signals import SignalHandlerOptions
 
     timeout = 0.5
-    car = tmp_path / "car.yaml"
-    car.write_text(f"controller: lmpc\nsafety: {{odometry_timeout: {timeout}}}\n")
+    car = tmp_path / "car.yaml"  # a car file in YAML, its [ros] section read by the node
+    car.write_text(f"vehicle: {{preset: f1tenth}}\nros:\n  safety: {{odometry_timeout: {timeout}}}\n")
     for key in ("ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_LOG_DIR"):
         monkeypatch.setenv(key, ros_env[key])
     context = rclpy.Context()
@@ -199,7 +237,7 @@ def test_the_node_stops_the_car_when_its_odometry_dies(tmp_path, ros_env, monkey
 
     node_log, sim_log = tmp_path / "node.log", tmp_path / "sim.log"
     bag = tmp_path / "bag"
-    node_args = ["node", "--config", str(car), "--out", str(tmp_path / "node")]
+    node_args = ["node", "--config", str(car), "--controller", "lmpc", "--out", str(tmp_path / "node")]
     node = start([*node_args, "--record", str(bag), "--record-storage", "sqlite3"], ros_env, node_log)
     sim = start(["sim-node", "--laps", "1"], ros_env, sim_log)
     try:

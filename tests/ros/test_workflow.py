@@ -19,7 +19,7 @@ from rkmpc.core.errors import OutputError, ParameterError
 from rkmpc.ros.workflow import MARKER, WorkflowConfig, WorkflowError, prepare_folder
 from rkmpc.ros.workflow_report import TABLE_KEYS, build_report, markdown_report
 
-SRC = Path(__file__).resolve().parents[1] / "src"
+SRC = Path(__file__).resolve().parents[2] / "src"
 
 
 def test_an_output_folder_is_not_reused_without_force(tmp_path):
@@ -133,14 +133,15 @@ def test_a_failing_stage_names_itself_and_leaves_no_process(tmp_path, monkeypatc
     pytest.importorskip("rclpy", reason="ROS 2 is not installed (make ros)", exc_type=ImportError)
     from rkmpc.ros import workflow
 
-    started: list[subprocess.Popen] = []
+    started: list = []
+    start = workflow._Run.start
 
-    class Recorded(subprocess.Popen):
-        def __init__(self, *args, **kwargs):
-            super().__init__(*args, **kwargs)
-            started.append(self)
+    def recorded(self, *args, **kwargs):  # every process the workflow starts (spawned, not forked)
+        process = start(self, *args, **kwargs)
+        started.append(process)
+        return process
 
-    monkeypatch.setattr(workflow.subprocess, "Popen", Recorded)
+    monkeypatch.setattr(workflow._Run, "start", recorded)
     monkeypatch.setenv("PYTHONPATH", os.pathsep.join([str(SRC), os.environ.get("PYTHONPATH", "")]))
     track = str(tmp_path / "no-such-track.csv")
     config = WorkflowConfig(out=str(tmp_path / "loop"), track=track, timeout=300)
@@ -148,7 +149,8 @@ def test_a_failing_stage_names_itself_and_leaves_no_process(tmp_path, monkeypatc
     with pytest.raises(WorkflowError, match=r"^record: rkmpc (sim-)?node") as info:
         workflow.run_workflow(config)
     assert "no-such-track.csv" in str(info.value)
-    assert len(started) == 2 and all(p.poll() is not None for p in started)  # the node and the car
+    assert len(started) == 2 and all(p.exitcode is not None for p in started)  # the node and the car
+    assert not any(p.is_alive() for p in started)
     assert (tmp_path / "loop" / "logs" / "record-node.log").is_file()
 
 

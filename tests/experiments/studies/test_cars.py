@@ -8,9 +8,11 @@ import pytest
 
 from rkmpc.analysis.statistics import stats
 from rkmpc.analysis.study_plots import plot_cars_study
+from rkmpc.config.loader import load_preset
 from rkmpc.core.errors import ParameterError
-from rkmpc.experiments.studies.cars import CarsStudyConfig, CarTargets, study_cars, targets_table
+from rkmpc.experiments.studies.cars import CarsStudy, CarsStudyConfig, CarTargets, targets_table
 from rkmpc.experiments.studies.tracks import TracksStudyConfig
+from rkmpc.experiments.study import Parallel, run_study
 from rkmpc.sim.scenario import load_scenario
 from rkmpc.vehicle.plants.composed import ComposedPlant
 from rkmpc.vehicle.plants.dynamic import DynamicPlant
@@ -22,23 +24,30 @@ def test_a_scenario_drives_its_zoo_car_and_records_it() -> None:
     assert scenario.vehicle.wheelbase == pytest.approx(0.307)  # the controllers keep the nominal car
     assert scenario.describe()["car"]["name"] == "gym"
     assert isinstance(load_scenario("oval").make_plant(), DynamicPlant)
-    with pytest.raises(ValueError, match="needs --vehicle f1tenth"):
+    with pytest.raises(ValueError, match="zoo cars are 1:10 cars: car 'gym' needs the f1tenth plant"):
         load_scenario("oval", vehicle="fullsize", car="gym")
 
 
 def test_config_validates() -> None:
     tracks = TracksStudyConfig(tracks=("oval",), controllers=("pp", "lmpc"))
     assert CarsStudyConfig(cars="gym,overshoot", tracks=tracks).cars == ("gym", "overshoot")
-    with pytest.raises(ParameterError, match="unknown car"):
+    with pytest.raises(ParameterError, match=r"CarsStudyConfig\.cars: unknown zoo car 'tank'"):
         CarsStudyConfig(cars=("gym", "tank"), tracks=tracks)
     with pytest.raises(ParameterError, match="1:10 cars"):
-        CarsStudyConfig(cars=("gym",), tracks=TracksStudyConfig(tracks=("oval",), vehicle="fullsize"))
-    with pytest.raises(ParameterError, match="not in the tracks' study_options"):
         CarsStudyConfig(
-            cars=("gym",), tracks=TracksStudyConfig(tracks=("oval",), study_options={"car": "gym"})
+            cars=("gym",), tracks=TracksStudyConfig(tracks=("oval",), car=load_preset("fullsize"))
         )
+    with pytest.raises(ParameterError, match="TracksStudyConfig"):
+        CarsStudyConfig(cars=("gym",), tracks="oval")  # type: ignore[arg-type]
     job = CarsStudyConfig(cars=("gym",), tracks=tracks).job_config("gym", "oval", 0)
-    assert job.car == "gym" and job.controllers == ("pp", "lmpc")
+    assert job.car.plant.car == "gym" and job.controllers == ("pp", "lmpc")
+    assert job.car == load_preset("f1tenth").with_zoo_car("gym")
+    # Each job drives its own zoo car, whatever car the tracks' settings drive.
+    on_gym = TracksStudyConfig(tracks=("oval",), car=load_preset("f1tenth").with_zoo_car("gym"))
+    job = CarsStudyConfig(cars=("overshoot",), tracks=on_gym).job_config("overshoot", "oval", 3)
+    assert job.car.plant.car == "overshoot" and job.seed == 3
+    study = CarsStudy(CarsStudyConfig(cars=("gym", "overshoot"), tracks=tracks))
+    assert [j.name for j in study.jobs()] == ["gym oval seed 0", "overshoot oval seed 0"]
 
 
 def test_targets_are_judged_against_their_limits() -> None:
@@ -67,7 +76,8 @@ def test_plot_has_a_bar_per_controller_and_car() -> None:
 @pytest.mark.slow
 def test_study_cars_drives_each_car() -> None:
     tracks = TracksStudyConfig(tracks=("oval",), controllers=("pp", "lmpc"))
-    result = study_cars(CarsStudyConfig(cars=("gym", "light-short"), tracks=tracks), n_jobs=2)
+    study = CarsStudy(CarsStudyConfig(cars=("gym", "light-short"), tracks=tracks))
+    result = run_study(study, parallel=Parallel(n_jobs=2))
     data = result.to_json()
     json.dumps(data, allow_nan=False)
     assert [j["car"] for j in data["jobs"]] == ["gym", "light-short"]
