@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from rkmpc.analysis.metrics import lap_metrics
+from rkmpc.control.guard import WheelAngleEstimate
 from rkmpc.control.linear.lmpc_id import IdentifiedLMPC
 from rkmpc.learning.identification import IdentifiedModel
 from rkmpc.learning.servo_fit import lag_delay_weights
@@ -91,3 +92,27 @@ def test_on_a_delay_dominated_servo_the_delay_states_beat_a_lag_folded_from_the_
     with_delay = lateral_error(_model(tau=0.03, delay=0.12))
     folded = lateral_error(_model(tau=0.15, delay=0.0))
     assert with_delay < 0.7 * folded
+
+
+@pytest.mark.parametrize("fitted_on", ["steer_angle", "yaw_rate", None])
+def test_a_servo_identified_from_the_yaw_rate_runs_its_wheel_from_the_commands(builtin_scenario, fitted_on):
+    """Its wheel is the steering as the yaw rate sees it: a measured wheel angle is not that state."""
+    sc = builtin_scenario
+    model = replace(_model(tau=0.1, delay=0.05), fitted_on=fitted_on)
+    ctrl = _Recording(sc.reference, sc.vehicle, model)
+    plant = make_plant("f1tenth")
+    start = sc.reference.horizon(0.0, 1, sc.dt)
+    plant.reset(start.x[0], start.y[0], start.theta[0], start.v[0], start.delta[0])
+    from_commands = WheelAngleEstimate(0.1, sc.dt, 0.05)
+    apart = 0.0
+    for _ in range(60):  # into the first corner
+        observation = plant.observe()
+        previous = None if ctrl._guard.previous is None else ctrl._guard.previous.copy()
+        command = ctrl.step(observation)
+        plant.step(command, sc.dt)
+        wheel = ctrl.full[0][3] + ctrl.wheel_ref[0]
+        estimate = from_commands(float("nan"), previous)
+        expected = estimate if fitted_on == "yaw_rate" else observation.steer_angle
+        assert wheel == pytest.approx(expected, abs=1e-12)
+        apart = max(apart, abs(estimate - observation.steer_angle))
+    assert apart > 1e-3  # the two differ on this drive

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from rkmpc.core.errors import InputFileError, ParameterError
+from rkmpc.core.jsonutil import to_json_ready
 from rkmpc.learning.identification import IdentifiedModel
 from rkmpc.learning.io import load_identified, load_model, save_identified
 from rkmpc.learning.koopman.model import KoopmanModel
@@ -29,14 +30,36 @@ def _identified() -> IdentifiedModel:
         servo_delay=0.032,
         servo_rate_limit=3.1,
         warnings=("understeer: the fit gives K = 0.3 s^2/m, beyond the plausible range; held at 0.1",),
+        status="identified",
+        status_reason="delay-lag-rate + K predicts the held-out yaw rate with 0.03 rad/s RMS, nominal 0.2",
+        fitted_on="yaw_rate",
+        folds=5,
+        heldout_rmse=0.03,
+        nominal_rmse=0.2,
+        heldout_r2=0.99,
+        heldout_candidates=(("nominal", 0.2), ("delay-lag-rate + K", 0.03)),
     )
 
 
 def _payload(**changes) -> dict:
-    model = {**asdict(_identified()), "warnings": list(_identified().warnings)}
-    payload = {"format": "rkmpc-identified", "version": 2, "model": model, "metadata": {}}
+    model = json.loads(json.dumps(to_json_ready(_identified())))
+    payload = {"format": "rkmpc-identified", "version": 3, "model": model, "metadata": {}}
     payload.update(changes)
     return payload
+
+
+#: The fields of a version 2 file.
+_V2 = (
+    "servo_time_constant",
+    "understeer_gradient",
+    "servo_fit_r2",
+    "understeer_fit_r2",
+    "n_samples",
+    "servo_structure",
+    "servo_delay",
+    "servo_rate_limit",
+    "warnings",
+)
 
 
 def _write(path, payload) -> None:
@@ -73,8 +96,14 @@ def test_identified_round_trip(tmp_path):
     # The file is plain JSON with the format tag, the model's fields and the metadata.
     payload = json.loads(path.read_text())
     assert payload["format"] == "rkmpc-identified"
-    assert payload["version"] == 2
-    assert payload["model"] == {**asdict(model), "warnings": list(model.warnings)}
+    assert payload["version"] == 3
+    assert payload["model"] == {
+        **asdict(model),
+        "warnings": list(model.warnings),
+        "wheel_heldout_rmse": None,  # not measured: null in the file, NaN in the model
+        "wheel_nominal_rmse": None,
+        "heldout_candidates": [["nominal", 0.2], ["delay-lag-rate + K", 0.03]],
+    }
     assert payload["metadata"] == {"track": "builtin", "dt": 0.05, "laps": 2}
     # Written atomically: nothing but the file is left in the folder.
     assert sorted(p.name for p in tmp_path.iterdir()) == ["model.json"]
@@ -115,15 +144,37 @@ def test_a_version_1_file_loads_as_a_lag_without_delay_rate_limit_or_warnings(tm
     )
 
 
+def test_a_version_2_file_loads_unchecked(tmp_path):
+    path = tmp_path / "v2.json"
+    v2 = {k: v for k, v in _payload()["model"].items() if k in _V2}
+    _write(path, {"format": "rkmpc-identified", "version": 2, "model": v2, "metadata": {}})
+    model = load_identified(path)
+    assert model == IdentifiedModel(**v2)
+    assert (model.servo_structure, model.servo_delay, model.servo_rate_limit) == (
+        "delay-lag-rate",
+        0.032,
+        3.1,
+    )
+    assert (model.status, model.status_reason, model.fitted_on, model.folds) == ("unchecked", "", None, 0)
+    assert math.isnan(model.heldout_rmse) and math.isnan(model.error_ratio)
+
+
+def test_a_version_2_file_with_version_3_fields_is_refused(tmp_path):
+    path = tmp_path / "model.json"
+    _write(path, _payload(version=2))
+    with pytest.raises(InputFileError, match=r"\[model\]: expected the fields .* \(version 2\)"):
+        load_identified(path)
+
+
 def test_a_version_1_file_with_version_2_fields_is_refused(tmp_path):
     path = tmp_path / "model.json"
-    _write(path, _payload(version=1))
+    _write(path, _payload(version=1, model={k: v for k, v in _payload()["model"].items() if k in _V2}))
     with pytest.raises(InputFileError, match=r"\[model\]: expected the fields .* \(version 1\)") as info:
         load_identified(path)
     assert info.value.field == "model"
 
 
-@pytest.mark.parametrize("version", [3, 0, "2", None, True])
+@pytest.mark.parametrize("version", [4, 0, "2", None, True])
 def test_an_unknown_version_is_refused(tmp_path, version):
     path = tmp_path / "model.json"
     _write(path, _payload(version=version))
@@ -145,14 +196,39 @@ def test_an_unknown_version_is_refused(tmp_path, version):
         ("warnings", [1, 2]),
         ("n_samples", 10.5),
         ("servo_fit_r2", "good"),
+        ("status", "great"),
+        ("status", None),
+        ("fitted_on", "gps"),
+        ("folds", -1),
+        ("heldout_rmse", "small"),
+        ("heldout_candidates", [["nominal"]]),
+        ("heldout_candidates", [[1, 0.2]]),
+        ("heldout_candidates", "nominal"),
+        ("status_reason", 3),
     ],
 )
-def test_bad_version_2_fields_name_the_field(tmp_path, field, value):
+def test_bad_fields_name_the_field(tmp_path, field, value):
     path = tmp_path / "model.json"
     _write(path, _payload(model=_model_fields(**{field: value})))
     with pytest.raises(InputFileError, match=rf"model\.json \[model\]: IdentifiedModel\.{field}") as info:
         load_identified(path)
     assert info.value.field == "model"
+
+
+def test_a_model_marked_nominal_must_be_the_nominal_one(tmp_path):
+    path = tmp_path / "model.json"
+    _write(path, _payload(model=_model_fields(status="nominal")))  # a delay-lag-rate servo and K != 0
+    with pytest.raises(InputFileError, match=r"IdentifiedModel\.status is 'nominal' but the model is not"):
+        load_identified(path)
+    nominal = _model_fields(
+        status="nominal",
+        servo_structure="nominal",
+        servo_delay=0.0,
+        servo_rate_limit=None,
+        understeer_gradient=0.0,
+    )
+    _write(path, _payload(model=nominal))
+    assert load_identified(path).status == "nominal"
 
 
 def test_identified_save_overwrites_and_defaults_metadata(tmp_path):

@@ -88,7 +88,7 @@ def test_the_structure_table_names_known_parameters_once():
     assert len(set(names)) == len(names) and names[0] == "lag"
     for s in SERVO_STRUCTURES:
         assert set(s.fitted) <= set(SERVO_PARAMETERS) and len(set(s.fitted)) == len(s.fitted)
-    assert history_depth(T) == 4  # u_{k-1} .. u_{k-4}: a delay of up to 0.15 s plus its remainder
+    assert history_depth(T) == 7  # u_{k-1} .. u_{k-7}: a delay of up to 0.3 s plus its remainder
 
 
 def test_fit_servo_ranks_every_structure_and_flags_implausible_bounds():

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
@@ -19,7 +20,7 @@ from rkmpc.learning.learn import Learned, learn, save_learned
 from rkmpc.learning.recipes import KoopmanLearner, Recipe, recipe_of_kind
 from rkmpc.vehicle.params import VehicleParams
 
-__all__ = ["describe_identified", "describe_learned", "estimated_for", "train_to_file"]
+__all__ = ["describe_heldout", "describe_identified", "describe_learned", "estimated_for", "train_to_file"]
 
 #: The observation fields a Koopman model's data must measure to be learned from as they are.
 _MEASURED = ("speed", "yaw_rate", "steer_angle")
@@ -47,16 +48,39 @@ def estimated_for(
 
 
 def describe_identified(model: IdentifiedModel) -> str:
-    """One line: the servo structure and parameters, the understeer gradient, the fits' R^2."""
+    """One line: the servo structure and parameters, the understeer gradient, what they were fitted on."""
     servo = f"servo {model.servo_structure}: tau {model.servo_time_constant:.3f} s"
     if model.servo_delay > 0:
         servo += f", delay {1000 * model.servo_delay:.0f} ms"
     if model.servo_rate_limit is not None:
         servo += f", rate limit {model.servo_rate_limit:.2f} rad/s"
-    return (
-        f"identified {servo} (R^2 {model.servo_fit_r2:.3f}); understeer K {model.understeer_gradient:.4f} "
-        f"s^2/m (R^2 {model.understeer_fit_r2:.3f}); {model.n_samples} transitions"
+    signal = {"steer_angle": "the measured wheel angle", "yaw_rate": "the yaw rate"}.get(
+        model.fitted_on or ""
     )
+    fitted = f", fitted on {signal}" if signal else ""
+    return (
+        f"identified {servo}; understeer K {model.understeer_gradient:.4f} s^2/m; "
+        f"{model.n_samples} transitions{fitted}"
+    )
+
+
+def describe_heldout(model: IdentifiedModel) -> str:
+    """One line: how well the model predicts held-out data against the nominal model, and its status."""
+    if model.status == "unchecked":
+        return "status unchecked: never compared with the nominal model on held-out data"
+    parts = []
+    if math.isfinite(model.heldout_rmse):
+        parts.append(
+            f"held-out yaw rate {model.heldout_rmse:.4f} rad/s RMS, nominal model {model.nominal_rmse:.4f} "
+            f"(ratio {model.error_ratio:.2f}, R^2 {model.heldout_r2:.3f})"
+        )
+    if math.isfinite(model.wheel_heldout_rmse):
+        parts.append(
+            f"held-out wheel angle {model.wheel_heldout_rmse:.4f} rad RMS, "
+            f"nominal {model.wheel_nominal_rmse:.4f}"
+        )
+    figures = "; ".join(parts) if parts else "no held-out figure"
+    return f"status {model.status} ({model.folds} time blocks): {figures}"
 
 
 def train_to_file(
@@ -105,8 +129,9 @@ def train_to_file(
     Returns
     -------
     list of str
-        A summary of what was written, line by line; for an identified model, one
-        ``warning:`` line per identification warning.
+        A summary of what was written, line by line; for an identified model, its parameters,
+        its held-out quality against the nominal model, a ``MARKED NOMINAL:`` line when it is the
+        nominal model, and one ``warning:`` line per identification warning.
 
     Raises
     ------
@@ -137,7 +162,13 @@ def describe_learned(learned: Learned, out: str | Path) -> list[str]:
     """What ``rkmpc train`` prints of a model it wrote: a summary line, then its warnings."""
     model, report = learned.model, learned.report
     if isinstance(model, IdentifiedModel):
-        return [f"{describe_identified(model)} -> {out}", *(f"warning: {w}" for w in learned.warnings)]
+        loud = [f"MARKED NOMINAL: {model.status_reason}"] if model.status == "nominal" else []
+        return [
+            f"{describe_identified(model)} -> {out}",
+            describe_heldout(model),
+            *loud,
+            *(f"warning: {w}" for w in learned.warnings),
+        ]
     lines = [*learned.warnings]
     if report is not None:
         lines.append(

@@ -10,13 +10,14 @@ from typing import Any
 from rkmpc.core.errors import InputFileError
 from rkmpc.core.io import write_json_atomic
 from rkmpc.core.jsonutil import to_json_ready
-from rkmpc.learning.identification import IdentifiedModel
+from rkmpc.learning.identified_model import IdentifiedModel
 from rkmpc.learning.koopman.model import KoopmanModel
 from rkmpc.learning.recipes import recipe_of_kind
 
 _IDENTIFIED_FORMAT = "rkmpc-identified"
-#: Version 2 adds the servo structure, delay, rate limit and the identification warnings.
-_IDENTIFIED_VERSION = 2
+#: Version 2 added the servo structure, delay, rate limit and the identification warnings; version 3
+#: the status (``identified`` or ``nominal``, with the reason) and the held-out quality.
+_IDENTIFIED_VERSION = 3
 #: The fields of version 1 files; the others take their defaults (a lag without delay or rate limit).
 _VERSION_1_FIELDS = (
     "servo_time_constant",
@@ -25,10 +26,20 @@ _VERSION_1_FIELDS = (
     "understeer_fit_r2",
     "n_samples",
 )
+#: The fields of version 2 files; the version 3 ones take their defaults (status ``unchecked``).
+_VERSION_2_FIELDS = (*_VERSION_1_FIELDS, "servo_structure", "servo_delay", "servo_rate_limit", "warnings")
+
+
+def _fields_of(version: int) -> list[str]:
+    if version == 1:
+        return list(_VERSION_1_FIELDS)
+    if version == 2:
+        return list(_VERSION_2_FIELDS)
+    return [f.name for f in fields(IdentifiedModel)]
 
 
 def save_identified(model: IdentifiedModel, path: str | Path, metadata: dict[str, Any] | None = None) -> None:
-    """Write an identified model as JSON, format version 2 (temporary file, then renamed)."""
+    """Write an identified model as JSON, format version 3 (temporary file, then renamed)."""
     write_json_atomic(
         path,
         {
@@ -41,7 +52,10 @@ def save_identified(model: IdentifiedModel, path: str | Path, metadata: dict[str
 
 
 def load_identified(path: str | Path) -> IdentifiedModel:
-    """Read a model written by :func:`save_identified` (version 1 or 2); clear errors for bad files."""
+    """Read a model written by :func:`save_identified` (versions 1 to 3); clear errors for bad files.
+
+    Versions 1 and 2 predate the held-out checks: their models load with status ``unchecked``.
+    """
     path = Path(path)
     try:
         payload = json.loads(path.read_text())
@@ -52,14 +66,14 @@ def load_identified(path: str | Path) -> IdentifiedModel:
     if not isinstance(payload, dict) or payload.get("format") != _IDENTIFIED_FORMAT:
         raise InputFileError(path, f"not an {_IDENTIFIED_FORMAT} file", field="format")
     version = payload.get("version")
-    if version not in (1, _IDENTIFIED_VERSION) or isinstance(version, bool):
+    if version not in (1, 2, _IDENTIFIED_VERSION) or isinstance(version, bool):
         raise InputFileError(
             path,
-            f"unknown version {version!r}; this rkmpc reads versions 1 and {_IDENTIFIED_VERSION}",
+            f"unknown version {version!r}; this rkmpc reads versions 1 to {_IDENTIFIED_VERSION}",
             field="version",
         )
     data = payload["model"] if isinstance(payload.get("model"), dict) else None
-    names = list(_VERSION_1_FIELDS) if version == 1 else [f.name for f in fields(IdentifiedModel)]
+    names = _fields_of(version)
     if data is None or sorted(data) != sorted(names):
         raise InputFileError(path, f"expected the fields {names} (version {version})", field="model")
     try:

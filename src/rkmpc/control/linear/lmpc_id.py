@@ -34,10 +34,17 @@ known part of the wheel trajectory is predicted exactly.
 
 When identification kept the nominal servo (its warnings say why), ``lmpc-id``
 drives with the car's nominal lag, without delay or extra rate limit.
+
+A servo identified from the yaw rate (``model.fitted_on == "yaw_rate"``, a car without a
+steering sensor) is the steering as the yaw rate sees it: the servo and the chassis's own lag in
+building up yaw together. Its wheel state is the one the kinematic model must be given to turn
+like the car, so ``lmpc-id`` runs it from the commands even when a wheel angle is measured (the
+measured wheel leads it by the chassis's lag).
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 from typing import TYPE_CHECKING
 
@@ -142,7 +149,10 @@ class IdentifiedLMPC(LinearMPC):
         delta = wheel_ref[:n]
         theta = ref.theta[:n]
         previous = self._guard.previous
-        wheel = self._wheel.step(None if previous is None else float(previous[1]), observation.steer_angle)
+        # A servo fitted to the yaw rate's response holds the chassis's yaw lag as well: a measured
+        # wheel angle is not its state, so its own wheel is run from the commands.
+        measured = math.nan if self.model.fitted_on == "yaw_rate" else observation.steer_angle
+        wheel = self._wheel.step(None if previous is None else float(previous[1]), measured)
         # States: pose deviations, the wheel angle, the commands u_{k-1}, ..., u_{k-p} still on
         # their way, each as its deviation from the wheel reference of the step it reaches the
         # wheel (m - j), the coordinates the input deviations of the QP have too, and 1.
