@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from rkmpc.analysis.metrics import lap_metrics
-from rkmpc.control.guard import WheelAngleEstimate
 from rkmpc.control.linear.lmpc_id import IdentifiedLMPC
+from rkmpc.estimation.steering import SteeringModel, WheelAnglePropagator
 from rkmpc.learning.identification import IdentifiedModel
 from rkmpc.learning.servo_fit import lag_delay_weights
 from rkmpc.sim.closed_loop import SimConfig, simulate
@@ -103,7 +103,9 @@ def test_a_servo_identified_from_the_yaw_rate_runs_its_wheel_from_the_commands(b
     plant = make_plant("f1tenth")
     start = sc.reference.horizon(0.0, 1, sc.dt)
     plant.reset(start.x[0], start.y[0], start.theta[0], start.v[0], start.delta[0])
-    from_commands = WheelAngleEstimate(0.1, sc.dt, 0.05)
+    from_commands = WheelAnglePropagator(
+        SteeringModel.from_identified(model, sc.vehicle.steering.max_angle), sc.dt
+    )
     apart = 0.0
     for _ in range(60):  # into the first corner
         observation = plant.observe()
@@ -111,7 +113,7 @@ def test_a_servo_identified_from_the_yaw_rate_runs_its_wheel_from_the_commands(b
         command = ctrl.step(observation)
         plant.step(command, sc.dt)
         wheel = ctrl.full[0][3] + ctrl.wheel_ref[0]
-        estimate = from_commands(float("nan"), previous)
+        estimate = from_commands.step(None if previous is None else float(previous[1]))
         expected = estimate if fitted_on == "yaw_rate" else observation.steer_angle
         assert wheel == pytest.approx(expected, abs=1e-12)
         apart = max(apart, abs(estimate - observation.steer_angle))

@@ -13,10 +13,11 @@ from dataclasses import dataclass, replace
 import numpy as np
 import pytest
 
+from rkmpc.config.loader import load_preset
 from rkmpc.learning.data.dataset import TransitionDataset
 from rkmpc.learning.identification import IdentifiedModel, identify, predicted_yaw_rate, wheel_from_commands
 from rkmpc.sim.collect import collect
-from rkmpc.sim.scenario import F1TENTH_LIMITS, Scenario, load_scenario
+from rkmpc.sim.scenario import Scenario, load_scenario
 from rkmpc.vehicle.plants.base import Plant
 from rkmpc.vehicle.zoo import CarSpec
 
@@ -130,7 +131,8 @@ class _Delayed(CarSpec):
 
 def test_a_steering_delay_of_150_ms_is_recovered_within_a_control_period(identified):
     # At 2 m/s the LMPC, unaware of the delay, still completes its two laps (at 3.5 m/s it leaves).
-    scenario = load_scenario("builtin", car="home", limits=replace(F1TENTH_LIMITS, max_speed=2.0))
+    limits = replace(load_preset("f1tenth").limits, max_speed=2.0)
+    scenario = load_scenario("builtin", car="home", limits=limits)
     assert scenario.car is not None
     car = _Delayed(
         **{

@@ -77,6 +77,9 @@ def add_study_parser(sub: Any) -> None:
     cars.add_argument("--cars", default=",".join(DEFAULT_CARS), help="zoo variants (or random-<seed>)")
     cars.add_argument("--tracks", default="builtin", help="as for `study tracks`")
     cars.add_argument("--controllers", default=",".join(CARS_CONTROLLERS))
+    cars.add_argument(
+        "--scale", type=float, default=None, help="scale of track files (default: the car's, 0.1 for f1tenth)"
+    )
     cars.add_argument("--seeds", default="0")
     add_config_args(cars)
     cars.add_argument(

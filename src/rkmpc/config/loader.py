@@ -61,6 +61,7 @@ from rkmpc.control.settings import ControllerSettings
 from rkmpc.core.errors import InputFileError, ParameterError
 from rkmpc.core.registry import Registry
 from rkmpc.core.settings import build_dataclass, check_keys, check_value
+from rkmpc.core.validation import is_positive_number
 from rkmpc.estimation.config import EstimatorConfig
 from rkmpc.track.speed_profile import SpeedLimits
 from rkmpc.vehicle.params import PARAMS, VehicleParams
@@ -200,6 +201,8 @@ def _build(data: Mapping[str, Any], path: Path, *, base: CarConfig | None, name:
     else:
         defaults = base
     scale = sections["vehicle"]["file_scale"] if "file_scale" in sections["vehicle"] else defaults.file_scale
+    if not is_positive_number(check_value(float, scale, path, "vehicle.file_scale")):
+        raise InputFileError(path, f"file_scale must be finite and > 0, got {scale!r}", "vehicle.file_scale")
     try:
         return CarConfig(
             preset=name,

@@ -20,7 +20,7 @@ from rkmpc.config.loader import load_preset
 from rkmpc.control.registry import CONTROLLERS
 from rkmpc.core.errors import ParameterError
 from rkmpc.core.jsonutil import to_json_ready
-from rkmpc.core.validation import is_integer
+from rkmpc.core.validation import is_integer, is_positive_number
 from rkmpc.core.versions import versions
 from rkmpc.experiments.models import ModelPlan, learn_models
 from rkmpc.experiments.results import ControllerRun, FaultOutcome, TrackResult
@@ -101,6 +101,8 @@ class CompareConfig:
     def __post_init__(self) -> None:
         if not isinstance(self.car, CarConfig):
             raise ParameterError(f"CompareConfig.car must be a CarConfig, got {self.car!r}")
+        if self.scale is not None and not is_positive_number(self.scale):
+            raise ParameterError(f"CompareConfig.scale must be a positive number or None, got {self.scale!r}")
         if not is_integer(self.run_laps, 1):
             raise ParameterError(f"CompareConfig.run_laps must be an integer >= 1, got {self.run_laps!r}")
         if not self.controllers:

@@ -113,6 +113,9 @@ def make_model(
         )
         if isinstance(learned.model, KoopmanModel):
             return learned.model, _record(learned, collect_time_s=collected if collected > 0.5 else None)
+        for warning in learned.model.warnings:
+            if say is not None:
+                say(f"{recipe.controller}: identification warning: {warning}")
         record = ModelRecord(
             kind=recipe.kind,
             raw_samples=len(made),

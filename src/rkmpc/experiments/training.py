@@ -29,11 +29,12 @@ _MEASURED = ("speed", "yaw_rate", "steer_angle")
 def estimated_for(
     recipe: Recipe, data: TransitionDataset, vehicle: VehicleParams, estimator: EstimatorConfig | None = None
 ) -> TransitionDataset:
-    """The data a recipe learns from: as recorded, or the state estimator's where a field is missing.
+    """The data a recipe learns from: as recorded, or the state estimator's where a field is unmeasured.
 
     A Koopman model learns from data whose speed, yaw rate and wheel angle were measured as they
-    are; data of a car without a steering-angle sensor (a real car, the ``f1tenth-real`` sensors)
-    are replaced by the smoothed estimates of :func:`rkmpc.estimation.labels.estimate_dataset`
+    are; data in which one of them was never measured (no row has it: a car without a
+    steering-angle sensor, the ``f1tenth-real`` sensors) are replaced by the smoothed estimates of
+    :func:`rkmpc.estimation.labels.estimate_dataset`
     (poses without jumps, the wheel angle propagated from the commands through the nominal servo,
     which the driving controller's estimator then uses too). An identification learns from the
     data as recorded (it identifies the servo from the yaw rate's response to the commands).
@@ -41,8 +42,9 @@ def estimated_for(
     if not isinstance(recipe.learner, KoopmanLearner):
         return data
     columns = [OBSERVATION_FIELDS.index(name) for name in _MEASURED]
-    if bool(np.isfinite(data.obs[:, columns]).all() and np.isfinite(data.next_obs[:, columns]).all()):
-        return data
+    never = ~np.isfinite(data.obs[:, columns]).any(axis=0)
+    if not never.any():
+        return data  # measured (a row where one is missing is for check_learnable to name)
     config = replace(estimator if estimator is not None else EstimatorConfig(), control_period=data.dt)
     return estimate_dataset(data, vehicle, config=config)
 

@@ -12,7 +12,7 @@ from rkmpc.core.io import write_json_atomic
 from rkmpc.core.jsonutil import to_json_ready
 from rkmpc.learning.identified_model import IdentifiedModel
 from rkmpc.learning.koopman.model import KoopmanModel
-from rkmpc.learning.recipes import recipe_of_kind
+from rkmpc.learning.recipes import IdentificationLearner, recipe_of_kind
 
 _IDENTIFIED_FORMAT = "rkmpc-identified"
 #: Version 2 added the servo structure, delay, rate limit and the identification warnings; version 3
@@ -90,8 +90,9 @@ def load_model(path: str | Path, kind: str) -> IdentifiedModel | KoopmanModel:
     trained on.
     """
     recipe = recipe_of_kind(kind)
-    _refuse_other_format(Path(path), kind, identified=recipe.learner == "identification")
-    if recipe.learner == "identification":
+    identified = isinstance(recipe.learner, IdentificationLearner)
+    _refuse_other_format(Path(path), kind, identified=identified)
+    if identified:
         return load_identified(path)
     model = KoopmanModel.load(path)
     found = model.metadata_.get("kind")

@@ -55,7 +55,7 @@ class LMPCConfig(TrackingCost):
         super().__post_init__()
         check_iterations(self, self.max_iterations)
         if self.solver not in QP_SOLVERS:
-            raise ParameterError(f"LMPCConfig.solver must be one of {QP_SOLVERS}, got {self.solver!r}")
+            raise ParameterError(f"LMPCConfig.solver must be one of {list(QP_SOLVERS)}, got {self.solver!r}")
 
 
 class LinearMPC(TrackingController):

@@ -24,6 +24,7 @@ from rkmpc.experiments.parallel import Job, JobOutcome
 from rkmpc.experiments.results import TrackResult
 from rkmpc.experiments.studies.common import (
     check_car,
+    check_scale,
     controller_names,
     int_tuple,
     json_object,
@@ -83,6 +84,7 @@ class TracksStudyConfig:
         object.__setattr__(self, "controllers", controllers)
         object.__setattr__(self, "seeds", int_tuple("TracksStudyConfig.seeds", self.seeds, minimum=0))
         check_car("TracksStudyConfig.car", self.car)
+        check_scale("TracksStudyConfig.scale", self.scale)
         if self.baseline is not None and self.baseline not in controllers:
             raise ParameterError(
                 f"TracksStudyConfig.baseline {self.baseline!r} is not among the controllers "
