@@ -9,7 +9,9 @@ against the nominal kinematic bicycle driven by the same commands (``kinematic``
     The paper's kinematic bicycle with the command as its input (``U = [v_cmd, delta_cmd]``).
 ``residual`` (rkmpc)
     The lifted model predicts the input ``U_p`` the kinematic bicycle needs (``y = C z + D u``,
-    ``z+ = A z + B u``) from the state features at the start; the bicycle driven by ``U_p``.
+    ``z+ = A z + B u``) from the state features at the start; the bicycle driven by ``U_p``. As rkmpc
+    drives with it, the correction ``U_p - U`` fades toward 0 where the start's features leave the
+    model's training range (:class:`~rkmpc.control.learned.trust.CorrectionTrust`).
 ``identified`` (lmpc-id)
     The identified servo turns the recorded steering commands into a wheel angle, and the bicycle
     turns with the identified understeer: curvature ``tan(delta) / (L + K v^2)``.
@@ -35,6 +37,8 @@ from typing import Any
 
 import numpy as np
 
+from rkmpc.control.learned.residual_config import RKMPCConfig
+from rkmpc.control.learned.trust import CorrectionTrust
 from rkmpc.core.angles import wrap_angle
 from rkmpc.core.errors import ParameterError
 from rkmpc.core.observation import OBSERVATION_FIELDS
@@ -222,11 +226,19 @@ def _predict(
         raise ParameterError(f"cannot predict with a {kind!r} model")
     previous = previous_commands(data.command, data.episode)[starts]
     if kind == "residual":
-        z = model.lift(RESIDUAL_STATE.of_array(data.obs[starts], previous))
+        features = RESIDUAL_STATE.of_array(data.obs[starts], previous)
+        z = model.lift(features)
         inputs = np.empty_like(commands)
         for k in range(horizon):
             inputs[:, k] = model.output(z, commands[:, k])
             z = model.step(z, commands[:, k])
+        # As rkmpc drives with it: the correction fades toward the command where the features
+        # leave the model's training range (rkmpc.control.learned.trust).
+        trust = CorrectionTrust(
+            model.A_, model.B_, model.Cx_, model.x_min_, model.x_max_, RKMPCConfig().trust
+        )
+        weight = trust.range_trust(features)[:, None, None]
+        inputs = commands + weight * (inputs - commands)
         curvature = np.tan(inputs[..., 1]) / length
         return _arcs(pose0, inputs[..., 0], curvature, data.dt), inputs[..., 0]
     if kind == "koopman":

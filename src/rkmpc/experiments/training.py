@@ -3,24 +3,33 @@
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
-from rkmpc.core.errors import ParameterError
+from rkmpc.core.errors import IdentificationWarning, ParameterError, RkmpcError
 from rkmpc.core.observation import OBSERVATION_FIELDS
 from rkmpc.estimation.config import EstimatorConfig
 from rkmpc.estimation.labels import estimate_dataset
+from rkmpc.estimation.steering import SteeringModel
 from rkmpc.learning.contract import Provenance
 from rkmpc.learning.data.dataset import TransitionDataset
-from rkmpc.learning.identification import IdentifiedModel
+from rkmpc.learning.identification import IdentifiedModel, identify
 from rkmpc.learning.learn import Learned, learn, save_learned
 from rkmpc.learning.recipes import KoopmanLearner, Recipe, recipe_of_kind
 from rkmpc.vehicle.params import VehicleParams
 
-__all__ = ["describe_heldout", "describe_identified", "describe_learned", "estimated_for", "train_to_file"]
+__all__ = [
+    "describe_heldout",
+    "describe_identified",
+    "describe_learned",
+    "estimated_for",
+    "identified_steering",
+    "train_to_file",
+]
 
 #: The observation fields a Koopman model's data must measure to be learned from as they are.
 _MEASURED = ("speed", "yaw_rate", "steer_angle")
@@ -35,8 +44,9 @@ def estimated_for(
     are; data in which one of them was never measured (no row has it: a car without a
     steering-angle sensor, the ``f1tenth-real`` sensors) are replaced by the smoothed estimates of
     :func:`rkmpc.estimation.labels.estimate_dataset`
-    (poses without jumps, the wheel angle propagated from the commands through the nominal servo,
-    which the driving controller's estimator then uses too). An identification learns from the
+    (poses without jumps, the wheel angle propagated from the commands through the servo the data
+    show, :func:`identified_steering`, which the model records and the driving controller's
+    estimator then uses too). An identification learns from the
     data as recorded (it identifies the servo from the yaw rate's response to the commands).
     """
     if not isinstance(recipe.learner, KoopmanLearner):
@@ -46,7 +56,21 @@ def estimated_for(
     if not never.any():
         return data  # measured (a row where one is missing is for check_learnable to name)
     config = replace(estimator if estimator is not None else EstimatorConfig(), control_period=data.dt)
-    return estimate_dataset(data, vehicle, config=config)
+    return estimate_dataset(data, vehicle, steering=identified_steering(data, vehicle), config=config)
+
+
+def identified_steering(data: TransitionDataset, vehicle: VehicleParams) -> SteeringModel:
+    """The steering servo the data show (:func:`rkmpc.learning.identification.identify`), or the
+    car's nominal one where identification finds nothing better on held-out data (or cannot run)."""
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", IdentificationWarning)
+            model = identify(data, vehicle)
+    except RkmpcError:
+        return SteeringModel.nominal(vehicle)
+    if model.status != "identified":
+        return SteeringModel.nominal(vehicle)
+    return SteeringModel.from_identified(model, vehicle.steering.max_angle)
 
 
 def describe_identified(model: IdentifiedModel) -> str:

@@ -139,8 +139,7 @@ class CorrectionTrust:
         if self._predicted is not None:
             e = float(np.max(np.abs(x - self._predicted) * self._inv_span))
             self._error += cfg.error_smoothing * (e - self._error)
-        outside = np.maximum(np.maximum(self._x_min - x, x - self._x_max), 0.0) * self._inv_span
-        w_range = min(max(1.0 - (float(np.max(outside)) - cfg.range_margin) / cfg.range_fade, 0.0), 1.0)
+        w_range = float(self.range_trust(x))
         w_error = min(max((cfg.error_high - self._error) / (cfg.error_high - cfg.error_low), 0.0), 1.0)
         self.steps += 1
         if w_range < 1.0:
@@ -150,6 +149,13 @@ class CorrectionTrust:
         self.trust = min(w_range, w_error) if cfg.enabled else 1.0
         self._trust_sum += self.trust
         return self.trust
+
+    def range_trust(self, x: np.ndarray) -> np.ndarray:
+        """The range part of the trust of features ``x``, shape (..., nx) -> (...,): 1 inside the
+        training range and its margin, falling to 0 over the fade."""
+        cfg = self.config
+        outside = np.maximum(np.maximum(self._x_min - x, x - self._x_max), 0.0) * self._inv_span
+        return np.clip(1.0 - (np.max(outside, axis=-1) - cfg.range_margin) / cfg.range_fade, 0.0, 1.0)
 
     def expect(self, z: np.ndarray, u: np.ndarray) -> None:
         """Remember the model's prediction of the next features from lifted state ``z`` and input ``u``."""

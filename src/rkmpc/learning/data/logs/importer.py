@@ -18,7 +18,7 @@ The data set keeps the raw measurements (no smoothing); ``steer_angle`` and ``sl
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -35,6 +35,7 @@ from rkmpc.learning.data.logs.stretches import Resampled, cut, resample_stretche
 from rkmpc.learning.data.quality import measures as m
 from rkmpc.learning.data.quality.records import PoseJump, ScaleFit, UnitCheck
 from rkmpc.learning.data.quality.report import QualityReport
+from rkmpc.learning.data.quality.speed_command import speed_command_check, with_measured_speed_commands
 from rkmpc.learning.data.quality.warnings import findings
 from rkmpc.learning.data.units import UNITS
 from rkmpc.learning.data.window import TimeWindow
@@ -117,7 +118,15 @@ def import_csv_log(
         raise InputFileError(signals.folder, _too_little(len(result.found), spec, window, span))
     dropped = len(run(covered).found) - len(result.found)
     report = _report(signals, spec, window, fit=fit, rate=rate, jumps=jumps, result=result, dropped=dropped)
-    return LogImport(data=_dataset(result.found, signals, spec, window, vehicle, scale), report=report)
+    data = _dataset(result.found, signals, spec, window, vehicle, scale)
+    check = speed_command_check(data)
+    if spec.speed_command == "measured" or (spec.speed_command == "auto" and not check.tracks):
+        check = replace(check, replaced=True)
+        data = with_measured_speed_commands(data, vehicle.drive.time_constant)
+    data = replace(data, metadata={**data.metadata, "speed_command": asdict(check)})
+    warning = check.message()
+    report = replace(report, speed_command=check, warnings=report.warnings + ((warning,) if warning else ()))
+    return LogImport(data=data, report=report)
 
 
 def _report(

@@ -23,6 +23,7 @@ from typing import Any
 from rkmpc.core.errors import ParameterError
 from rkmpc.core.jsonutil import to_json_ready
 from rkmpc.core.validation import is_integer
+from rkmpc.learning.data.quality.speed_command import SPEED_COMMAND_RULES
 from rkmpc.learning.data.units import unit_factor
 
 __all__ = [
@@ -239,6 +240,11 @@ class CsvLogSpec:
         A heading that turned farther (rad) than the yaw rate allows, by more than this, is a jump.
     min_samples : int
         Fewer transitions than this are an error.
+    speed_command : str
+        ``"auto"`` (default): replace the recorded speed command by the measured speed where it did
+        not set the car's speed (a remote-controlled log:
+        :mod:`rkmpc.learning.data.quality.speed_command`); ``"recorded"``: keep it; ``"measured"``:
+        always replace it.
     """
 
     name: str
@@ -254,6 +260,7 @@ class CsvLogSpec:
     jump_distance: float = 0.3
     jump_yaw: float = 0.3
     min_samples: int = 20
+    speed_command: str = "auto"
 
     def __post_init__(self) -> None:
         _name(self.name, "CsvLogSpec.name")
@@ -270,6 +277,11 @@ class CsvLogSpec:
         tol = self.command_tolerance
         if tol is not None and not (_real(tol) and 0 <= tol < self.dt):
             raise ParameterError(f"CsvLogSpec.command_tolerance must be None or in [0, dt), got {tol!r}")
+        if self.speed_command not in SPEED_COMMAND_RULES:
+            raise ParameterError(
+                f"CsvLogSpec.speed_command must be one of {list(SPEED_COMMAND_RULES)}, "
+                f"got {self.speed_command!r}"
+            )
         if not is_integer(self.min_samples, 1):
             raise ParameterError(f"CsvLogSpec.min_samples must be an integer >= 1, got {self.min_samples!r}")
 

@@ -59,7 +59,16 @@ _SIGNALS: dict[str, type] = {
     "yaw_rate": ValueSource,
     "command": CommandSource,
 }
-_SETTINGS = ("dt", "max_gap", "command_hold", "command_tolerance", "jump_distance", "jump_yaw", "min_samples")
+_SETTINGS = (
+    "dt",
+    "max_gap",
+    "command_hold",
+    "command_tolerance",
+    "jump_distance",
+    "jump_yaw",
+    "min_samples",
+    "speed_command",
+)
 _TOP = ("name", "description", "time", *_SIGNALS, "import")
 
 

@@ -25,6 +25,7 @@ from rkmpc.learning.data.quality.records import (
     SignalRate,
     UnitCheck,
 )
+from rkmpc.learning.data.quality.speed_command import SpeedCommandCheck
 
 __all__ = ["QualityReport"]
 
@@ -77,6 +78,8 @@ class QualityReport:
         ``(file, note)``: columns constant in every row or repeating another.
     coverage : Coverage
         Speeds and curvatures of the transitions.
+    speed_command : SpeedCommandCheck or None
+        Whether the recorded speed command set the car's speed (and whether it was replaced).
     warnings : tuple of str
         The findings that need a look, in words.
     """
@@ -101,6 +104,7 @@ class QualityReport:
     columns: tuple[tuple[str, str], ...]
     coverage: Coverage
     warnings: tuple[str, ...]
+    speed_command: SpeedCommandCheck | None = None
 
     def to_json(self) -> dict[str, Any]:
         """Plain JSON types (NaN as null); ``longest_gap_s`` added to each rate."""
@@ -203,11 +207,20 @@ def _speed_scale(report: QualityReport) -> list[str]:
     lines = ["### Speed scale", ""]
     if fit is None:
         return [*lines, "Not measured: too few windows in which the car moved far enough."]
-    return lines + _wrap(
+    lines += _wrap(
         f"Speed sensor / speed of the pose = {fit.factor:.3f} (median of {fit.windows} windows of "
         f"{fit.baseline_s:g} s; quartiles {fit.q25:.3f}-{fit.q75:.3f})"
         + (": far from 1, check the sensor's scale." if fit.warning else ".")
     )
+    check = report.speed_command
+    if check is not None and check.samples:
+        text = (
+            f"Speed reached / speed commanded = {check.ratio:.2f} (median of {check.samples} transitions)"
+            + ("." if check.tracks else ": the command did not set the speed.")
+            + (" The speed command is replaced by the measured speed." if check.replaced else "")
+        )
+        lines += ["", *_wrap(text)]
+    return lines
 
 
 def _units(report: QualityReport) -> list[str]:
