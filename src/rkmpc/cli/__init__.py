@@ -82,6 +82,13 @@ def build_parser() -> argparse.ArgumentParser:
     )
     add_scenario_args(compare)
     add_learning_args(compare)
+    compare.add_argument(
+        "--also-sensors",
+        default="f1tenth-real",
+        metavar="PROFILE",
+        help="drive the comparison again with these sensors (learning from data recorded with them), "
+        "into OUT/sensors-PROFILE/; none: skip",
+    )
     add_collect_parser(sub)
     add_train_parser(sub)
     add_evaluate_parser(sub)

@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 from typing import Any
 
 from rkmpc.cli.common import car_config, split_controllers
 
-__all__ = ["cmd_compare", "model_files"]
+__all__ = ["GUARD_SHARE", "cmd_compare", "degraded", "model_files"]
 
 
 def model_files(names: list[str], specs: list[str]) -> dict[str, str]:
@@ -30,18 +31,66 @@ def model_files(names: list[str], specs: list[str]) -> dict[str, str]:
     return paths
 
 
+#: Share of a run's steps a learned controller may keep its baseline's command (``guard``) unsaid.
+GUARD_SHARE = 0.02
+
+
+def degraded(label: str, result: Any) -> str | None:
+    """A line for the terminal when more than :data:`GUARD_SHARE` of a run's steps were ``guard`` steps."""
+    counts = result.status_counts
+    guard = counts["guard"] if "guard" in counts else 0
+    steps = max(len(result.log), 1)
+    if guard <= GUARD_SHARE * steps:
+        return None
+    return (
+        f"  {label}: {guard} of {steps} steps ({guard / steps:.0%}) kept the baseline's command (guard): "
+        "an input it needs was not measured or not finite"
+    )
+
+
 def cmd_compare(args: argparse.Namespace) -> int:
     from rich.console import Console
 
     from rkmpc.analysis.tables import fault_table, rich_tables_fitting
     from rkmpc.core.io import output_folder
-    from rkmpc.experiments.compare import CompareConfig, compare
-    from rkmpc.experiments.report import title_of, write_comparison, write_single_run
+    from rkmpc.experiments.report import title_of
 
     car = car_config(args)
     single = args.command == "run"
     names = [args.controller] if single else split_controllers(args.controllers)
-    config = CompareConfig(
+    profiles = [None]
+    also = getattr(args, "also_sensors", None)
+    if also is not None and also != "none" and also != car.sensors.name:
+        profiles.append(also)
+    console = Console(stderr=True)
+    markers = ("metrics.json",) if single else ("results.json",)
+    configs = [_config(args, car.with_sensors(profile), names) for profile in profiles]
+    for config in configs:
+        config.scenario()  # a bad track, scale, car or profile is refused before any folder is made
+    with output_folder(args.out, force=args.force, markers=markers) as out:
+        results = []
+        for profile, config in zip(profiles, configs, strict=True):
+            folder = out if profile is None else out / f"sensors-{profile}"
+            folder.mkdir(exist_ok=True)
+            if profile is not None:
+                console.print(f"the same with the {profile} sensors (docs/sensors.md)")
+            results.append(_drive(config, folder, single, console))
+    wide = Console(width=None if Console().is_terminal else 100)
+    for profile, result in zip(profiles, results, strict=True):
+        title = title_of(result) + ("" if profile is None else f", {profile} sensors")
+        for table in rich_tables_fitting(result.metrics(), title, wide.width):
+            wide.print(table)
+        if result.fault is not None:
+            faulted = {name: run.metrics for name, run in result.fault.runs.items()}
+            wide.print(fault_table(result.metrics(), faulted, result.fault.effects, result.fault.fault))
+    console.print(f"results in {args.out}/" + ("" if len(profiles) == 1 else f" (and sensors-{also}/)"))
+    return 0
+
+
+def _config(args: argparse.Namespace, car: Any, names: list[str]) -> Any:
+    from rkmpc.experiments.compare import CompareConfig
+
+    return CompareConfig(
         track=args.track,
         car=car,
         controllers=tuple(names),
@@ -55,29 +104,28 @@ def cmd_compare(args: argparse.Namespace) -> int:
         cache_dir=None if args.cache_dir is None else str(args.cache_dir),
         use_cache=not args.no_cache,
     )
-    track = config.scenario().track  # a bad track, scale or car is refused before any folder is made
-    markers = ("metrics.json",) if single else ("results.json",)
-    console = Console(stderr=True)
+
+
+def _drive(config: Any, out: Path, single: bool, console: Any) -> Any:
+    """One comparison into ``out``: its logs, results and plots; what it found."""
+    from rkmpc.experiments.compare import compare
+    from rkmpc.experiments.report import write_comparison, write_single_run
+
     logs: dict[str, Any] = {}
-    with output_folder(args.out, force=args.force, markers=markers) as out:
 
-        def on_run(label: str, result: Any) -> None:
-            result.log.to_csv(out / ("log.csv" if single and "+" not in label else f"log_{label}.csv"))
-            console.print(f"  {label}: {result.outcome}, {len(result.log)} steps")
+    def on_run(label: str, result: Any) -> None:
+        result.log.to_csv(out / ("log.csv" if single and "+" not in label else f"log_{label}.csv"))
+        console.print(f"  {label}: {result.outcome}, {len(result.log)} steps")
+        warning = degraded(label, result)
+        if warning is not None:
+            console.print(f"[yellow]{warning}[/yellow]")
 
-        with console.status("starting", spinner="dots") as status:
+    with console.status("starting", spinner="dots") as status:
 
-            def say(message: str) -> None:
-                status.update(message)
-                console.print(message, soft_wrap=True)
+        def say(message: str) -> None:
+            status.update(message)
+            console.print(message, soft_wrap=console.is_terminal)
 
-            result = compare(config, logs=logs, on_run=on_run, say=say)
-        (write_single_run if single else write_comparison)(out, result, logs, track)
-    wide = Console(width=None if Console().is_terminal else 260)
-    for table in rich_tables_fitting(result.metrics(), title_of(result), wide.width):
-        wide.print(table)
-    console.print(f"results in {args.out}/")
-    if result.fault is not None:
-        faulted = {name: run.metrics for name, run in result.fault.runs.items()}
-        wide.print(fault_table(result.metrics(), faulted, result.fault.effects, result.fault.fault))
-    return 0
+        result = compare(config, logs=logs, on_run=on_run, say=say)
+    (write_single_run if single else write_comparison)(out, result, logs, config.scenario().track)
+    return result

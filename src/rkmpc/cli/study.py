@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -73,7 +74,11 @@ def add_study_parser(sub: Any) -> None:
     tracks.add_argument("--cache-dir", type=Path, default=None, help=CACHE_HELP)
     add_parallel_args(tracks)
     tracks.add_argument("--journal", type=Path, default=None, help=JOURNAL_HELP)
-    cars = kinds.add_parser("cars", help="every controller on cars of the zoo it was not built for")
+    cars = kinds.add_parser(
+        "cars",
+        help="every controller on cars of the zoo it was not built for, with a real car's sensors "
+        f"(--sensors, default {CARS_SENSORS})",
+    )
     cars.add_argument("--cars", default=",".join(DEFAULT_CARS), help="zoo variants (or random-<seed>)")
     cars.add_argument("--tracks", default="builtin", help="as for `study tracks`")
     cars.add_argument("--controllers", default=",".join(CARS_CONTROLLERS))
@@ -174,10 +179,18 @@ def _tracks(args: argparse.Namespace) -> Study[Any]:
     return TracksStudy(tracks_config(args))
 
 
+#: The sensors of ``study cars`` unless ``--sensors`` (or a car file's ``[sensors]``) says otherwise:
+#: the study speaks for real cars.
+CARS_SENSORS = "f1tenth-real"
+
+
 def _cars(args: argparse.Namespace) -> Study[Any]:
     from rkmpc.experiments.studies.cars import CarsStudy, CarsStudyConfig
 
-    return CarsStudy(CarsStudyConfig(cars=args.cars.split(","), tracks=tracks_config(args)))
+    tracks = tracks_config(args)
+    if args.sensors is None and tracks.car.sensors.is_ideal:
+        tracks = replace(tracks, car=tracks.car.with_sensors(CARS_SENSORS))
+    return CarsStudy(CarsStudyConfig(cars=args.cars.split(","), tracks=tracks))
 
 
 def pace_study_config(args: argparse.Namespace) -> PaceStudyConfig:
