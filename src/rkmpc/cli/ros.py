@@ -121,6 +121,13 @@ def add_car_loop_parser(sub: Any) -> None:
     loop.add_argument(
         "--timeout", type=float, default=3600.0, help="bound of each process (s), against hangs"
     )
+    loop.add_argument(
+        "--sensors",
+        default="f1tenth-real",
+        metavar="PROFILE",
+        help="the simulated car's sensors: f1tenth-real (no wheel angle: no steering topic, the node "
+        "estimates) or ideal (its wheel angle on a steering topic)",
+    )
     loop.add_argument("--force", action="store_true", help="replace an earlier car-loop output folder")
 
 
@@ -217,6 +224,7 @@ def cmd_car_loop(args: argparse.Namespace) -> int:
         domain_id=args.domain_id,
         force=args.force,
         timeout=args.timeout,
+        sensors=args.sensors,
     )
     # Ctrl-C stops the processes, and SIGTERM as Ctrl-C does; set here, like every other command's
     # handler, so that a car-loop started with SIGINT ignored (a background job) still stops.

@@ -77,7 +77,8 @@ def observation_from_odometry(
     Observation
         Position of the centre of gravity, heading, ``speed`` = ``twist.linear.x`` (along the
         heading), yaw rate = ``twist.angular.z``, slip angle = ``atan2(vy, vx)`` (0 at standstill),
-        ``time`` and ``pose_time`` = the header stamp (s).
+        ``time`` = the header stamp (s); ``pose_time`` NaN: the pose is as current as its stamp (a
+        message that repeats the last pose is no new pose for the state estimator).
     """
     pose = msg.pose.pose
     q = pose.orientation
@@ -94,7 +95,6 @@ def observation_from_odometry(
         slip_angle=(math.atan2(vy, vx) if (vx or vy) else 0.0) if lateral_velocity else math.nan,
         steer_angle=float(steer),
         time=stamp,
-        pose_time=stamp,
     )
 
 

@@ -132,7 +132,8 @@ def run_workflow(config: WorkflowConfig, say: Callable[[str], None] | None = Non
     for sub in ("logs", "cars", "models", "data"):
         (out / sub).mkdir()
     write_json_atomic(out / MARKER, {"config": asdict(config), "state": "running"})
-    run = _Run(config, out, _environment(config, out), tell, load_preset("f1tenth"))
+    car = load_preset("f1tenth").with_sensors(config.sensors)
+    run = _Run(config, out, _environment(config, out), tell, car)
     tell(f"ROS_DOMAIN_ID={run.env['ROS_DOMAIN_ID']}, discovery on this machine only, {config.clock} clock")
     try:
         report = _stages(run)
@@ -211,8 +212,10 @@ def _import(run: _Run) -> str:
     from rkmpc.learning.data.bags import BagImportConfig, import_bag
 
     bag, data = run.out / "record" / "bag", run.out / "data" / "laps.npz"
-    run.commands.append(f"rkmpc collect --from-bag {bag} --steer-topic {STEERING_TOPIC} --out {data}")
-    imported = import_bag(bag, run.car.vehicle, BagImportConfig(steer_topic=STEERING_TOPIC))
+    topic = f" --steer-topic {STEERING_TOPIC}" if run.car.sensors.measures_steer_angle else ""
+    run.commands.append(f"rkmpc collect --from-bag {bag}{topic} --out {data}")
+    steer = STEERING_TOPIC if run.car.sensors.measures_steer_angle else None
+    imported = import_bag(bag, run.car.vehicle, BagImportConfig(steer_topic=steer))
     imported.save(data)
     episodes = len(set(imported.episode.tolist()))
     return f"{len(imported)} transitions in {episodes} episode(s) from {bag} -> {data}"
@@ -246,7 +249,8 @@ def _car_of(run: _Run, name: str, compensate: bool, delay: float) -> CarConfig:
     ros = replace(
         ros,
         trigger="odometry" if run.config.clock == "lockstep" else "timer",
-        topics=replace(ros.topics, steering=STEERING_TOPIC),
+        topics=replace(ros.topics, steering=STEERING_TOPIC if run.car.sensors.measures_steer_angle else None),
+        odometry=replace(ros.odometry, lateral_velocity=run.car.sensors.measures_slip_angle),
         latency=LatencySettings(compensate=True, actuation=delay) if compensate else ros.latency,
     )
     car = replace(run.car, ros=ros)
@@ -289,7 +293,7 @@ def _drive(
         track=config.track,
         clock=config.clock,
         laps=laps,
-        steering_topic=STEERING_TOPIC,
+        steering_topic=STEERING_TOPIC if car.sensors.measures_steer_angle else "",
         seed=config.seed,
         actuation_delay=delay,
         startup_timeout=bound,
@@ -300,7 +304,7 @@ def _drive(
         sim_node_process,
         (sim_config, str(folder / "sim")),
         f"rkmpc sim-node --track {config.track} --clock {config.clock} --laps {laps} "
-        f"--steering-topic {STEERING_TOPIC} --seed {config.seed} --actuation-delay {delay}",
+        f"--sensors {car.sensors.name} --seed {config.seed} --actuation-delay {delay}",
     )
     deadline = time.monotonic() + config.timeout
     while sim.exitcode is None:

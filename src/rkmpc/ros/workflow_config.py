@@ -6,6 +6,7 @@ from dataclasses import dataclass
 
 from rkmpc.core.errors import ParameterError
 from rkmpc.ros.sim_config import CLOCKS
+from rkmpc.vehicle.sensors import get_sensor_profile
 
 __all__ = ["WorkflowConfig"]
 
@@ -38,6 +39,11 @@ class WorkflowConfig:
         Replace an earlier ``car-loop`` output folder.
     timeout : float
         Wall-clock bound (s) of each process: a guard against a hang, never a measure.
+    sensors : str
+        The simulated car's sensors (:mod:`rkmpc.vehicle.sensors`), which the node's car file
+        declares too: ``"f1tenth-real"`` (default: a real car's, no wheel angle, so no steering
+        topic, and the node drives through the state estimator) or ``"ideal"`` (the wheel angle
+        published on a steering topic, as before).
     """
 
     out: str
@@ -51,6 +57,7 @@ class WorkflowConfig:
     domain_id: int | None = None
     force: bool = False
     timeout: float = 3600.0
+    sensors: str = "f1tenth-real"
 
     def __post_init__(self) -> None:
         from rkmpc.learning.recipes import recipe_for
@@ -61,6 +68,7 @@ class WorkflowConfig:
             raise ParameterError(f"record_laps must be >= 1, got {self.record_laps}")
         if not (self.delay >= 0.0 and self.timeout > 0.0):
             raise ParameterError("delay must be >= 0 and timeout > 0")
+        get_sensor_profile(self.sensors)
         if self.domain_id is not None and not 0 <= self.domain_id <= 101:
             raise ParameterError(f"domain_id must be in 0-101, got {self.domain_id}")
         learned = {r.controller: r.kind for name in self.controllers if (r := recipe_for(name)) is not None}

@@ -28,6 +28,7 @@ from rkmpc.sim.closed_loop import SimResult
 __all__ = [
     "DEFAULT_LADDERS",
     "MAX_FALLBACK_SHARE",
+    "MAX_PACES",
     "Pace",
     "car_ladder",
     "check_ladder",
@@ -46,13 +47,17 @@ Pace = tuple[float, float]
 MAX_FALLBACK_SHARE = 0.02
 
 #: Default ladder per vehicle preset: (first pace, step, number of steps). The first pace is the
-#: preset's own (``F1TENTH_LIMITS``: 4 m/s^2, 3.5 m/s; ``FULLSIZE_LIMITS``: 5 m/s^2, 25 m/s); the
-#: top speed is capped at the car's (8 m/s for the 1:10 car), so the f1tenth ladder runs (4, 3.5),
-#: (4.5, 4), ..., (8.5, 8), (9, 8).
+#: preset's own (4 m/s^2, 3.5 m/s for the 1:10 car; 5 m/s^2, 25 m/s for the full-size car); the
+#: top speed is capped at the car's (8 m/s for the 1:10 car). The ladder goes on beyond the tyres'
+#: grip (about 11 m/s^2 for the 1:10 car, 10 for the full-size one), so that every controller,
+#: the best one included, stops on it: the f1tenth ladder runs (4, 3.5), (4.5, 4), ..., (8.5, 8),
+#: (9, 8), ..., (14, 8). A climb ends at its first unclean pace, so the rungs above cost nothing.
 DEFAULT_LADDERS: dict[str, tuple[Pace, Pace, int]] = {
-    "f1tenth": ((4.0, 3.5), (0.5, 0.5), 10),
-    "fullsize": ((5.0, 25.0), (0.5, 2.5), 8),
+    "f1tenth": ((4.0, 3.5), (0.5, 0.5), 20),
+    "fullsize": ((5.0, 25.0), (0.5, 2.5), 16),
 }
+#: Most paces a ladder may hold: a ladder is a list of full laps per pace.
+MAX_PACES = 60
 
 
 def pace_label(pace: Pace) -> str:
@@ -80,8 +85,8 @@ def pace_ladder(
     a0, v0 = _pace("pace_ladder start", d_start if start is None else start)
     da, dv = d_step if step is None else step
     n = d_steps if steps is None else steps
-    if not is_integer(n, 0):
-        raise ParameterError(f"pace_ladder: steps must be an integer >= 0, got {n!r}")
+    if not is_integer(n, 0) or n >= MAX_PACES:
+        raise ParameterError(f"pace_ladder: steps must be an integer from 0 to {MAX_PACES - 1}, got {n!r}")
     if not (math.isfinite(da) and math.isfinite(dv) and da >= 0 and dv >= 0 and da + dv > 0):
         raise ParameterError(f"pace_ladder: step must be two non-negative numbers, not both 0, got {step!r}")
     top = load_preset(vehicle).vehicle.drive.max_speed if top_speed is None else top_speed
@@ -137,6 +142,8 @@ def check_ladder(name: str, paces: Iterable[Any]) -> tuple[Pace, ...]:
     out = tuple(_pace(name, p) for p in paces)
     if not out:
         raise ParameterError(f"{name}: the ladder holds no pace")
+    if len(out) > MAX_PACES:
+        raise ParameterError(f"{name}: {len(out)} paces; a ladder holds at most {MAX_PACES}")
     for low, high in itertools.pairwise(out):
         if high[0] < low[0] or high[1] < low[1] or high == low:
             raise ParameterError(
