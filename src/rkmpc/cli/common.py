@@ -187,7 +187,10 @@ def add_ladder_args(parser: argparse.ArgumentParser) -> None:
         help="pace step LATERAL:SPEED (default: 0.5:0.5 for f1tenth; top speed capped at the car's)",
     )
     parser.add_argument(
-        "--steps", type=at_least(0), default=None, help="steps above the first pace, at most 59 (default: 20 for f1tenth, 16 for fullsize)"
+        "--steps",
+        type=at_least(0),
+        default=None,
+        help="steps above the first pace, at most 59 (default: 20 for f1tenth, 16 for fullsize)",
     )
 
 
