@@ -12,6 +12,7 @@ from dataclasses import dataclass, field, replace
 from typing import Any, Self
 
 from rkmpc.control.learned.adaptation import AdaptationConfig
+from rkmpc.control.learned.lateral_guard import LateralGuardConfig
 from rkmpc.control.learned.trust import TrustConfig
 from rkmpc.control.tracking import check_weights
 from rkmpc.core.errors import ParameterError
@@ -130,15 +131,21 @@ class RKMPCConfig(ResidualMPCConfig):
     adaptation : AdaptationConfig
         Online recursive least squares on the output map of the model
         (:mod:`rkmpc.control.learned.adaptation`); off by default.
+    lateral_guard : LateralGuardConfig
+        The constraint that keeps the corrected plan's predicted lateral deviations within the
+        uncorrected plan's largest (:mod:`rkmpc.control.learned.lateral_guard`); off by default.
     """
 
     lateral_accel_weight: float = 0.0
     slip_drift: bool = False
     trust: TrustConfig = field(default_factory=TrustConfig)
     adaptation: AdaptationConfig = field(default_factory=AdaptationConfig)
+    lateral_guard: LateralGuardConfig = field(default_factory=LateralGuardConfig)
 
     def __post_init__(self) -> None:
         super().__post_init__()
+        if not isinstance(self.lateral_guard, LateralGuardConfig):
+            raise ParameterError("RKMPCConfig.lateral_guard must be a LateralGuardConfig")
         check_weights(self, "lateral_accel_weight")
         if not isinstance(self.slip_drift, bool):
             raise ParameterError(f"RKMPCConfig.slip_drift must be True or False, got {self.slip_drift!r}")

@@ -1,31 +1,22 @@
 """Residual Koopman MPC: a linear MPC plus a residual MPC on a lifted model.
 
-Both controllers here keep the paper's structure: the LMPC of
-:mod:`rkmpc.control.linear.lmpc` computes the baseline ``U_lmpc`` on the kinematic
-model; a second, residual MPC on a learned lifted linear (Koopman) model
-computes the correction ``dU``; the car receives ``U_lmpc + dU`` clipped to its
-limits and to the LMPC's speed floor (:class:`rkmpc.control.guard.SpeedFloor`: half the
-reference speed by default), which bounds the residual QP too, so that a speed correction
-never stops the car where the reference moves. They differ in what the learned model
-describes (see ``docs/method.md``).
+Both controllers keep the paper's structure: the LMPC of :mod:`rkmpc.control.linear.lmpc`
+computes the baseline ``U_lmpc`` on the kinematic model; a residual MPC on a learned lifted linear
+(Koopman) model computes the correction ``dU``; the car receives ``U_lmpc + dU`` clipped to its
+limits and to the LMPC's speed floor (:class:`rkmpc.control.guard.SpeedFloor`), which bounds the
+residual QP too. They differ in what the learned model describes (``docs/method.md``).
 
-``rkmpc`` (default): the residual sits in the kinematic model's input channel.
-The lifted model, on features of the measured speed, wheel angle and yaw rate,
-predicts the input ``U_p`` that the kinematic model needs to reproduce the
-car's motion when ``U`` is applied (so ``dU_label = U - U_p``). The residual
-MPC chooses ``dU`` so that the kinematic model driven by the predicted ``U_p``
-follows the reference, around the LMPC's own linearisation.
+``rkmpc`` (default): the residual sits in the kinematic model's input channel. The lifted model,
+on features of the speed, wheel angle and yaw rate, predicts the input ``U_p`` the kinematic model
+needs to reproduce the car's motion when ``U`` is applied; the residual MPC chooses ``dU`` so that
+the kinematic model driven by the predicted ``U_p`` follows the reference, around the LMPC's own
+linearisation. Its Hessian changes every step and is factorised with LAPACK
+(:class:`rkmpc.control.qp.DaqpQP`); its lateral guard bounds the corrected plan's lateral
+deviations (:mod:`rkmpc.control.learned.lateral_guard`).
 
-The default's residual Hessian contains the LMPC's condensed prediction, so it
-changes at every step and is factorised with LAPACK rather than by the QP
-solver (see :class:`rkmpc.control.qp.DaqpQP`).
-
-``rkmpc-paper``: the literal reading. The lifted state is the pose in the car's
-local frame, ``z = [x, y, theta, psi(x, y, theta)]``, driven by the control
-residual ``dU``; the residual MPC tracks the reference in the local frame with
-``mu dv^2 + eps ddelta^2`` on the correction (paper Eq. MPC2). Its model is time
-invariant, so the QP's Hessian is fixed at construction and only the gradient
-changes.
+``rkmpc-paper``: the literal reading. The lifted state is the pose in the car's local frame,
+driven by the control residual ``dU``; the residual MPC tracks the reference in the local frame
+with ``mu dv^2 + eps ddelta^2`` on the correction (paper Eq. MPC2). Its Hessian is fixed.
 """
 
 from __future__ import annotations
@@ -38,6 +29,7 @@ import numpy as np
 from rkmpc.control.base import Controller
 from rkmpc.control.guard import CommandGuard
 from rkmpc.control.learned.adaptation import OutputRLS
+from rkmpc.control.learned.lateral_guard import LateralGuard, LateralGuardConfig
 from rkmpc.control.learned.lifted import (
     LiftedModel,
     lifted_prediction,
@@ -112,9 +104,15 @@ class _ResidualBase(Controller):
         self.trust: CorrectionTrust | None = None
         #: Last correction applied (first step), shape (2,).
         self.last_correction = np.zeros(2)
+        #: The lateral-deviation constraint of the residual QP (``rkmpc`` only; off for the paper's).
+        self.lateral = LateralGuard(n, vehicle.wheelbase, self._lateral_config())
         # The Hessian the residual QP holds (a fixed one need not be passed again).
         self._qp_hessian: np.ndarray | None = None
         self._precompute()
+
+    def _lateral_config(self) -> LateralGuardConfig:
+        """The lateral guard's settings (subclasses with one): off here."""
+        return LateralGuardConfig()
 
     def _check_config(self, config: ResidualMPCConfig) -> None:
         """Refuse settings of another class than this controller's (subclasses)."""
@@ -138,14 +136,17 @@ class _ResidualBase(Controller):
         self.lmpc.reset()
         self._guard.reset()
         self.last_correction = np.zeros(2)
+        self.lateral.reset()
         if self.trust is not None:
             self.trust.reset()
 
     def diagnostics(self) -> dict[str, float]:
         """Steps on which the correction was faded, by cause, and the mean trust (for the run's record)."""
+        guarded = {"lateral_guard_steps": float(self.lateral.steps)} if self.lateral.config.enabled else {}
         if self.trust is None:
-            return {}
+            return guarded
         return {
+            **guarded,
             "trust_steps": float(self.trust.steps),
             "trust_faded_range": float(self.trust.faded["range"]),
             "trust_faded_error": float(self.trust.faded["error"]),
@@ -183,8 +184,14 @@ class _ResidualBase(Controller):
         # As the LMPC: never faster than the reference speed profile.
         np.minimum(ub[0::2], pred.u_ref[:, 0] - pred.plan[:, 0], out=ub[0::2])
         np.minimum(lb, ub, out=lb)
+        lateral = self.lateral
         if not self._qp.is_setup:
-            self._qp.setup(H, f, lb, ub, np.zeros((0, plan.size)), np.zeros(0), np.zeros(0))
+            self._qp.setup(H, f, lb, ub, lateral.rows, lateral.lower, lateral.upper)
+        elif lateral.config.enabled:
+            hessian = None if H is self._qp_hessian else H
+            self._qp.update(
+                H=hessian, f=f, lb=lb, ub=ub, A=lateral.rows, lbA=lateral.lower, ubA=lateral.upper
+            )
         else:
             self._qp.update(H=None if H is self._qp_hessian else H, f=f, lb=lb, ub=ub)
         if self.config.steer_rate_weight > 0.0:
@@ -194,6 +201,7 @@ class _ResidualBase(Controller):
         result = self._qp.solve()
         if not result.solved or not _all_finite(result.x):
             return self._apply(plan[:2], np.zeros(2)), result.reason, f"residual QP failed: {result.status}"
+        lateral.judge(result.x)
         weight = 1.0 if self.trust is None else self.trust.trust
         return self._apply(plan[:2], weight * result.x[:2]), "ok", ""
 
@@ -236,6 +244,9 @@ class ResidualKoopmanMPC(_ResidualBase):
     settings_field = "rkmpc"
     default_config: RKMPCConfig = RKMPCConfig()
     config: RKMPCConfig
+
+    def _lateral_config(self) -> LateralGuardConfig:
+        return self.config.lateral_guard
 
     def _precompute(self) -> None:
         # Time invariant: U_p over the horizon = Mz z0 + Mu U, computed once.
@@ -330,6 +341,7 @@ class ResidualKoopmanMPC(_ResidualBase):
         if self.config.slip_drift:
             self._add_slip_drift(e0, observation, pred)
         GM = pred.Gamma @ self._Mu
+        self.lateral.pose(pred.reference.theta[1 : self.horizon + 1], e0, GM)
         GtQ = (self._q[:, None] * GM).T
         H = GtQ @ GM
         H += self._R

@@ -86,8 +86,9 @@ class DenseQP(ABC):
         ub: np.ndarray | None = None,
         lbA: np.ndarray | None = None,
         ubA: np.ndarray | None = None,
+        A: np.ndarray | None = None,
     ) -> None:
-        """Replace numbers of the problem; shapes must stay the same."""
+        """Replace numbers of the problem (``A`` too, its shape kept); shapes must stay the same."""
 
     @abstractmethod
     def solve(self) -> QPResult:

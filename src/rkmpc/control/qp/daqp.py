@@ -110,6 +110,7 @@ class DaqpQP(DenseQP):
         ub: np.ndarray | None = None,
         lbA: np.ndarray | None = None,
         ubA: np.ndarray | None = None,
+        A: np.ndarray | None = None,
     ) -> None:
         n = self._n
         bounds_changed = False
@@ -131,12 +132,22 @@ class DaqpQP(DenseQP):
             self._model.update(
                 H=None if H is None else np.ascontiguousarray(H, dtype=float),
                 f=None if f is None else np.ascontiguousarray(f, dtype=float),
+                A=None if A is None else np.ascontiguousarray(A, dtype=float),
                 bupper=bu,
                 blower=bl,
             )
             return
         if f is not None:
             self._f[:] = f
+        if A is not None:
+            self._A[:] = A
+            if H is None:  # the constraint rows are A R^-1: new rows with the factor held
+                if not self._nonconvex and self._A.shape[0]:
+                    np.dot(self._A, self._rinv, out=self._rows[n:])
+                    if f is not None:
+                        np.dot(self._f, self._rinv, out=self._g)
+                    self._model.update(A=self._rows, f=self._g, bupper=self._bu, blower=self._bl)
+                return
         if H is not None:
             self._factor(H)
             if not self._nonconvex:

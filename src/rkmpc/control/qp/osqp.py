@@ -33,6 +33,7 @@ class OsqpQP(DenseQP):
         self.eps = eps
         self._solver: Any = None
         self._triu: tuple[np.ndarray, np.ndarray] = (np.zeros(0, int), np.zeros(0, int))
+        self._a_pattern = np.zeros(0, int)
         self._l = np.zeros(0)
         self._u = np.zeros(0)
         self._n = 0
@@ -57,7 +58,15 @@ class OsqpQP(DenseQP):
         order = np.lexsort((rows, cols))
         self._triu = (rows[order], cols[order])
         P = sparse.csc_matrix((np.asarray(H)[self._triu], self._triu), shape=(n, n))
-        Acon = sparse.vstack([sparse.identity(n, format="csc"), sparse.csc_matrix(A)], format="csc")
+        # [I; A] with A stored densely (every entry in the pattern), so its values can change.
+        A = np.asarray(A, dtype=float).reshape(-1, n)
+        dense = np.vstack([np.eye(n), A])
+        pattern = np.vstack([np.eye(n), np.ones_like(A)]) != 0
+        Acon = sparse.csc_matrix((dense[pattern.nonzero()], pattern.nonzero()), shape=dense.shape)
+        Acon.sort_indices()
+        rows, cols = pattern.nonzero()
+        order = np.lexsort((rows, cols))
+        self._a_pattern = cols[order] * dense.shape[0] + rows[order]
         self._l = np.concatenate([lb, lbA]).astype(float)
         self._u = np.concatenate([ub, ubA]).astype(float)
         self._solver = osqp.OSQP()
@@ -84,6 +93,7 @@ class OsqpQP(DenseQP):
         ub: np.ndarray | None = None,
         lbA: np.ndarray | None = None,
         ubA: np.ndarray | None = None,
+        A: np.ndarray | None = None,
     ) -> None:
         n = self._n
         if lb is not None:
@@ -102,6 +112,9 @@ class OsqpQP(DenseQP):
         if any(b is not None for b in (lb, ub, lbA, ubA)):
             kwargs["l"] = self._l
             kwargs["u"] = self._u
+        if A is not None:  # the values of [I; A] in the (dense) pattern set up
+            dense = np.vstack([np.eye(n), np.asarray(A, dtype=float)])
+            kwargs["Ax"] = dense.T.reshape(-1)[self._a_pattern]
         if kwargs:
             self._solver.update(**kwargs)
 
