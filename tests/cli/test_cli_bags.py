@@ -47,6 +47,21 @@ def test_collect_from_a_bag_writes_the_data_set(tmp_path, bag, capsys):
     assert data.contract.vehicle == "f1tenth" and data.contract.dt == 0.05
 
 
+@pytest.mark.parametrize(
+    ("extra", "slip_measured"),
+    [([], True), (["--sensors", "f1tenth-real"], False), (["--no-lateral-velocity"], False)],
+)
+def test_the_lateral_velocity_is_read_only_where_the_car_measures_it(tmp_path, bag, extra, slip_measured):
+    path, _ = bag
+    out = tmp_path / "data.npz"
+    args = ["collect", "--from-bag", str(path), "--out", str(out), "--odom-topic", "/car_state/odom"]
+    assert main([*args, *extra]) == 0
+    data = TransitionDataset.load(out)
+    moving = data.obs[:, 3] > 1.0
+    assert moving.any() and np.isfinite(data.obs[moving, 5]).all() == slip_measured
+    assert data.metadata["measured"]["lateral_velocity"] is slip_measured
+
+
 def test_rkmpc_train_accepts_an_imported_data_set(tmp_path, bag, capsys):
     path, _ = bag
     data, model = tmp_path / "data.npz", tmp_path / "identified.json"

@@ -17,6 +17,7 @@ import pytest
 from rkmpc.config.loader import PRESETS, load_preset
 from rkmpc.config.scaling import carry_over, speed_priced
 from rkmpc.control import make_controller
+from rkmpc.control.learned.lateral_guard import LateralGuardConfig
 from rkmpc.control.learned.residual_config import PAPER_RESIDUAL, ResidualMPCConfig, RKMPCConfig
 from rkmpc.control.learned.rkmpc import PaperResidualKoopmanMPC, ResidualKoopmanMPC
 from rkmpc.control.linear.lmpc import LMPCConfig
@@ -103,12 +104,21 @@ def test_the_f1tenth_preset_keeps_the_limits_and_the_controllers_defaults():
         limits.curvature_rate,
     ) == (4.0, 2.5, 2.5, 3.5, 0.5, 1.0)
     assert limits == F1TENTH_LIMITS
-    # The 1:10 car's settings are the controllers' own defaults.
-    assert car.controllers == ControllerSettings()
+    # The 1:10 car's settings are the controllers' own defaults, but rkmpc's: its preset tunes it
+    # (on the built-in track and the oval) with the slip drift, heavier position and heading weights
+    # and the lateral guard.
+    assert car.controllers == replace(ControllerSettings(), rkmpc=car.controllers.rkmpc)
     assert car.controllers.lmpc == LMPCConfig()
-    assert car.controllers.rkmpc == ResidualKoopmanMPC.default_config == RKMPCConfig()
+    assert car.controllers.rkmpc == replace(
+        RKMPCConfig(),
+        position_weight=2.0,
+        heading_weight=3.0,
+        slip_drift=True,
+        lateral_guard=LateralGuardConfig(enabled=True),
+    )
+    assert ResidualKoopmanMPC.default_config == RKMPCConfig()
     assert car.controllers.rkmpc_paper == PaperResidualKoopmanMPC.default_config == PAPER_RESIDUAL
-    assert not car.controllers.rkmpc.slip_drift and car.controllers.rkmpc.lateral_accel_weight == 0.0
+    assert car.controllers.rkmpc.lateral_accel_weight == 0.0
 
 
 def test_the_fullsize_preset_gives_the_tuned_values():
@@ -159,7 +169,9 @@ def _assert_same_settings(computed, preset) -> None:
 def test_the_scaling_rules_recompute_the_fullsize_preset_from_the_f1tenth_one():
     small, large = load_preset("f1tenth"), load_preset("fullsize")
     args = (small.vehicle, small.limits, large.vehicle, large.limits)
-    scaled = carry_over(small.controllers.rkmpc, *args)
+    # From the controllers' defaults: the 1:10 preset's own tuning of rkmpc (weights, guard) is not
+    # carried over; the full-size car was tuned on its own tracks.
+    scaled = carry_over(RKMPCConfig(), *args)
     priced = speed_priced(scaled, large.vehicle, large.limits, position_weight=8.0, top_price=4.0, floor=2.0)
     _assert_same_settings(priced, large.controllers.rkmpc)
     _assert_same_settings(carry_over(small.controllers.rkmpc_paper, *args), large.controllers.rkmpc_paper)
@@ -178,13 +190,14 @@ def test_fullsize_residual_settings_grow_with_the_car():
     large = load_preset("fullsize").controllers
     assert large.rkmpc.max_speed_correction > 5.0 * small.rkmpc.max_speed_correction
     assert large.rkmpc_paper.steer_weight > 50.0 * PaperResidualKoopmanMPC.default_config.steer_weight
-    assert small.rkmpc.lateral_accel_weight == 0.0
-    assert large.rkmpc.slip_drift and not small.rkmpc.slip_drift
+    assert small.rkmpc.lateral_accel_weight == 0.0 and large.rkmpc.lateral_accel_weight > 0.0
+    assert large.rkmpc.slip_drift and small.rkmpc.slip_drift
+    assert small.rkmpc.lateral_guard.enabled and not large.rkmpc.lateral_guard.enabled
 
 
 def test_fullsize_rkmpc_prices_steering_by_speed_at_half_the_scaled_settings_at_top_speed():
     small, large = load_preset("f1tenth"), load_preset("fullsize")
-    scaled = carry_over(small.controllers.rkmpc, small.vehicle, small.limits, large.vehicle, large.limits)
+    scaled = carry_over(RKMPCConfig(), small.vehicle, small.limits, large.vehicle, large.limits)
     cfg = large.controllers.rkmpc
 
     def price(speed: float) -> float:  # steering weight per unit position weight at a planned speed
@@ -257,7 +270,7 @@ def test_compare_takes_the_residual_settings_of_the_car_unless_given():
     mine = replace(car, controllers=replace(car.controllers, rkmpc=given))
     assert CompareConfig(track="builtin", car=mine).car.controllers.rkmpc is given
     small = CompareConfig(track="builtin")
-    assert small.car.controllers.rkmpc == ResidualKoopmanMPC.default_config
+    assert small.car.controllers.rkmpc == load_preset("f1tenth").controllers.rkmpc
     # rkmpc's settings are not rkmpc-paper's: given the wrong kind, the car refuses them.
     with pytest.raises(
         ParameterError, match=r"rkmpc_paper \(\[controllers\.rkmpc-paper\]\) must be a ResidualMPCConfig"

@@ -51,6 +51,17 @@ def add_bag_args(parser: argparse.ArgumentParser) -> None:
         choices=ODOM_FRAMES,
         help="where the odometry's child frame sits: centre of gravity (F1TENTH simulator) or rear axle",
     )
+    group.add_argument(
+        "--no-lateral-velocity",
+        action="store_true",
+        help="the odometry's twist.linear.y is not measured (a particle filter's): side slip NaN "
+        "(the default when the car's sensors measure no side slip, e.g. --sensors f1tenth-real)",
+    )
+    group.add_argument(
+        "--no-yaw-rate",
+        action="store_true",
+        help="the odometry's twist.angular.z is not measured: yaw rate NaN",
+    )
     group.add_argument("--dt", type=float, default=0.05, help="control period to resample onto (s)")
     group.add_argument(
         "--max-gap", type=float, default=None, help="odometry gap (s) that starts a new episode (3 periods)"
@@ -88,6 +99,7 @@ def cmd_collect_from_bag(args: argparse.Namespace) -> int:
     from rkmpc.cli.common import car_config
     from rkmpc.learning.data.bags import BagImportConfig, import_bag
 
+    car = car_config(args)
     config = BagImportConfig(
         dt=args.dt,
         odom_topic=args.odom_topic,
@@ -100,12 +112,14 @@ def cmd_collect_from_bag(args: argparse.Namespace) -> int:
         max_gap=args.max_gap,
         command_tolerance=args.command_tolerance,
         min_samples=args.min_samples,
+        lateral_velocity=car.sensors.measures_slip_angle and not args.no_lateral_velocity,
+        yaw_rate=not args.no_yaw_rate,
         window=_window(args),
     )
     if args.from_log is not None or args.excitation:
         raise ValueError("--from-bag, --from-log and --excitation exclude each other")
     try:
-        data = import_bag(args.from_bag, car_config(args).vehicle, config, scale=args.scale)
+        data = import_bag(args.from_bag, car.vehicle, config, scale=args.scale)
     except ImportError as exc:  # pragma: no cover - depends on the environment
         print(f"rkmpc: error: {exc}", file=sys.stderr)
         return 2

@@ -166,8 +166,8 @@ class CarConfig:
 
     def with_sensors(self, profile: str | SensorProfile | None) -> CarConfig:
         """This car with another sensor profile (a name of :data:`rkmpc.vehicle.sensors.SENSOR_PROFILES`);
-        None keeps the car's."""
-        if profile is None:
+        None, or the name of the car's own profile, keeps the car's (with its file's overrides)."""
+        if profile is None or (isinstance(profile, str) and profile == self.sensors.name):
             return self
         sensors = get_sensor_profile(profile) if isinstance(profile, str) else profile
         return self if sensors == self.sensors else replace(self, sensors=sensors)

@@ -97,7 +97,8 @@ class OdometrySettings:
     lateral_velocity : bool
         Whether ``twist.linear.y`` is measured (a simulator's, a motion-capture system's). A real
         car's VESC odometry publishes 0 there: with ``false`` the slip angle is NaN (unmeasured,
-        for the state estimator to estimate), never a slip angle of 0.
+        for the state estimator to estimate), never a slip angle of 0. A car whose ``[sensors]``
+        measure no side slip (``measures_slip_angle = false``) is read as ``false`` whatever this says.
     yaw_rate : bool
         Whether ``twist.angular.z`` is measured; ``false`` makes the yaw rate NaN.
     """

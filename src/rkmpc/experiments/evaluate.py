@@ -66,10 +66,14 @@ _X, _Y, _YAW, _SPEED, _STEER = (
 
 @dataclass(frozen=True, kw_only=True)
 class EvaluationRow:
-    """One model at one horizon: the errors of its predictions (SI units) over ``samples`` starts."""
+    """One model at one horizon: the errors of its predictions (SI units) over ``samples`` starts.
+
+    ``model`` is the model's kind (``kinematic`` for the nominal model, ``residual``, ``identified``,
+    ``koopman``, ...), ``file`` the name it was given (its file's; None for the nominal model).
+    """
 
     model: str
-    kind: str
+    file: str | None
     horizon_steps: int
     horizon_s: float
     samples: int
@@ -92,11 +96,26 @@ class Evaluation:
     models: dict[str, str]
 
     def row(self, model: str, horizon: int) -> EvaluationRow:
-        """The row of ``model`` at ``horizon`` steps."""
-        for row in self.rows:
-            if row.model == model and row.horizon_steps == horizon:
-                return row
+        """The row of ``model`` (a kind, or a file's name where two files have one kind) at ``horizon``."""
+        found = [
+            row
+            for row in self.rows
+            if row.horizon_steps == horizon and (row.file == model or (row.model == model))
+        ]
+        named = [row for row in found if row.file == model]
+        if len(named) == 1:
+            return named[0]
+        if len(found) == 1:
+            return found[0]
+        if found:
+            files = ", ".join(str(row.file) for row in found)
+            raise ParameterError(f"{len(found)} models of kind {model!r} ({files}): name one by its file")
         raise ParameterError(f"no evaluation of {model!r} at {horizon} steps")
+
+    def label(self, row: EvaluationRow) -> str:
+        """What to call the row's model: its kind, or its file's name where two files have one kind."""
+        same = {r.file for r in self.rows if r.model == row.model}
+        return row.model if len(same) == 1 else f"{row.model} ({row.file})"
 
     def to_json(self) -> dict[str, Any]:
         return {
@@ -113,11 +132,14 @@ class Evaluation:
         """Position and heading error against the horizon, one line per model."""
         from rkmpc.analysis.prediction_plots import plot_prediction_errors
 
-        names = list(dict.fromkeys(row.model for row in self.rows))
+        labels = {self.label(row): row.file or row.model for row in self.rows}
         steps = sorted({row.horizon_steps for row in self.rows})
 
         def series(field: str) -> dict[str, list[float]]:
-            return {n: [float(getattr(self.row(n, h), field)) for h in steps] for n in names}
+            return {
+                label: [float(getattr(self.row(key, h), field)) for h in steps]
+                for label, key in labels.items()
+            }
 
         return plot_prediction_errors(
             [h * self.dt for h in steps],
@@ -133,7 +155,7 @@ class Evaluation:
             f"Open-loop prediction of {self.transitions} recorded transitions ({self.starts} starts, "
             f"dt {self.dt:g} s); truth: {self.truth}.",
             "",
-            "| model | kind | steps | s | position mean (m) | p95 (m) | vs kinematic | heading (rad) | "
+            "| model | file | steps | s | position mean (m) | p95 (m) | vs kinematic | heading (rad) | "
             "speed (m/s) |",
             "|---|---|---|---|---|---|---|---|---|",
         ]
@@ -142,7 +164,8 @@ class Evaluation:
             ratio = r.position_mean_m / base.position_mean_m if base.position_mean_m > 0 else math.nan
             p95 = r.position_p95_m / base.position_p95_m if base.position_p95_m > 0 else math.nan
             lines.append(
-                f"| {r.model} | {r.kind} | {r.horizon_steps} | {r.horizon_s:.2f} | {r.position_mean_m:.4f} | "
+                f"| {r.model} | {r.file or '-'} | {r.horizon_steps} | {r.horizon_s:.2f} | "
+                f"{r.position_mean_m:.4f} | "
                 f"{r.position_p95_m:.4f} | {ratio:.2f} / {p95:.2f} | {r.heading_mean_rad:.4f} | "
                 f"{r.speed_mean_m_s:.3f} |"
             )
@@ -309,7 +332,7 @@ def evaluate(
     truth_pose = _window(reference.next_obs, starts, horizon)[..., [_X, _Y, _YAW]]
     truth_speed = _window(reference.next_obs[:, _SPEED], starts, horizon)
     rows: list[EvaluationRow] = []
-    entries: list[tuple[str, str, object]] = [("kinematic", "kinematic", None)]
+    entries: list[tuple[str | None, str, object]] = [(None, "kinematic", None)]
     entries += [(name, kinds[name], model) for name, model in models.items()]
     for name, kind, model in entries:
         # A model's wheel-angle feature, where the data do not measure it, as it was trained with.
@@ -326,8 +349,8 @@ def evaluate(
             k = h - 1
             rows.append(
                 EvaluationRow(
-                    model=name,
-                    kind=kind,
+                    model=kind,
+                    file=name,
                     horizon_steps=h,
                     horizon_s=h * data.dt,
                     samples=int(starts.size),

@@ -195,7 +195,8 @@ class ControllerNode(Node):
         observation = observation_from_odometry(
             msg,
             rear_axle_to_cog=self._lr,
-            lateral_velocity=reading.lateral_velocity,
+            # A car whose sensors measure no side slip has no lateral velocity to read (a VESC's 0).
+            lateral_velocity=reading.lateral_velocity and self.car.sensors.measures_slip_angle,
             yaw_rate=reading.yaw_rate,
         )
         wall = time.monotonic()

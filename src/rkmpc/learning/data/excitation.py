@@ -16,6 +16,8 @@ from rkmpc.core.errors import ParameterError
 from rkmpc.core.observation import Command
 from rkmpc.vehicle.plants.base import Plant
 
+_MAX_EMPTY_EPISODES = 100
+
 
 @dataclass(frozen=True)
 class ExcitationConfig:
@@ -41,7 +43,9 @@ class ExcitationConfig:
         model, ``v^2 tan(delta) / L`` (m/s^2): steering is limited at speed.
     max_slip : float
         An episode ends when the side-slip angle exceeds this (rad): the car has
-        spun, and what follows is not driving data.
+        spun, and what follows is not driving data. The simulator's true state
+        decides (the supervisor of the experiment), so the episode ends the
+        same way whatever the sensors measure.
     seed : int
         Seed of every random choice.
     """
@@ -107,7 +111,9 @@ def random_excitation(
     next_rows: list[np.ndarray] = []
     episodes: list[int] = []
     episode = 0
+    empty_in_a_row = 0
     while len(cmd_rows) < config.n_samples:
+        recorded = len(cmd_rows)
         speed = rng.uniform(lo, hi)
         steer = rng.uniform(-steer_max, steer_max) * 0.5
         plant.reset(0.0, 0.0, rng.uniform(-math.pi, math.pi), speed, steer)
@@ -126,10 +132,12 @@ def random_excitation(
             steer += alpha * (target_d - steer)
             plant.step(Command(speed=speed, steer=steer), dt)
             nxt = plant.observe()
+            truth = plant.unwrapped.observe()
             if not (
-                np.all(np.isfinite(nxt.as_array()))
-                and abs(nxt.slip_angle) <= config.max_slip
-                and nxt.speed >= 0
+                np.all(np.isfinite(truth.as_array()))
+                and np.all(np.isfinite([nxt.x, nxt.y, nxt.yaw, nxt.speed]))
+                and abs(truth.slip_angle) <= config.max_slip
+                and truth.speed >= 0
             ):
                 break
             obs_rows.append(obs.as_array())
@@ -140,4 +148,10 @@ def random_excitation(
             if len(cmd_rows) >= config.n_samples:
                 break
         episode += 1
+        empty_in_a_row = empty_in_a_row + 1 if len(cmd_rows) == recorded else 0
+        if empty_in_a_row >= _MAX_EMPTY_EPISODES:
+            raise ParameterError(
+                f"random_excitation: {_MAX_EMPTY_EPISODES} episodes in a row ended at their first step "
+                "(the car spun at once, or its sensors gave no finite pose or speed); nothing to record"
+            )
     return np.array(obs_rows), np.array(cmd_rows), np.array(next_rows), np.array(episodes, dtype=np.int64)

@@ -43,6 +43,11 @@ class Plant(ABC):
     params: VehicleParams
     STATE_NAMES: tuple[str, ...] = ()
 
+    @property
+    def unwrapped(self) -> Plant:
+        """The innermost plant: this one (a wrapper returns the plant it wraps, all the way in)."""
+        return self
+
     @abstractmethod
     def reset(self, x: float, y: float, yaw: float, speed: float, steer: float = 0.0) -> None:
         """Place the car, driving steadily, and set the clock to zero.

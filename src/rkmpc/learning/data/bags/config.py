@@ -92,6 +92,12 @@ class BagImportConfig:
         the last command at or before each sample.
     min_slip_speed : float
         Below this speed (m/s) the side-slip angle is not defined and is NaN.
+    lateral_velocity : bool
+        The odometry's ``twist.linear.y`` is a measured lateral velocity (a simulator's, a state
+        estimator's). False: it is not (a particle filter's odometry reports 0) and the side-slip
+        angle is NaN, left to the state estimator.
+    yaw_rate : bool
+        The odometry's ``twist.angular.z`` is a measured yaw rate. False: the yaw rate is NaN.
     min_samples : int
         Fewer transitions than this after resampling are an error ("too little data").
     window : TimeWindow or None
@@ -110,6 +116,8 @@ class BagImportConfig:
     max_gap: float | None = None
     command_tolerance: float | None = None
     min_slip_speed: float = 0.5
+    lateral_velocity: bool = True
+    yaw_rate: bool = True
     min_samples: int = 20
     window: TimeWindow | None = None
 
@@ -142,6 +150,9 @@ class BagImportConfig:
             )
         if not is_integer(self.min_samples, 1):
             raise ParameterError(f"{name}.min_samples must be an integer >= 1, got {self.min_samples!r}")
+        for flag in ("lateral_velocity", "yaw_rate"):
+            if not isinstance(getattr(self, flag), bool):
+                raise ParameterError(f"{name}.{flag} must be true or false, got {getattr(self, flag)!r}")
 
     @property
     def gap(self) -> float:
@@ -165,6 +176,7 @@ class BagImportConfig:
             "max_gap": self.gap,
             "command_tolerance": self.tolerance,
             "min_slip_speed": self.min_slip_speed,
+            "measured": {"lateral_velocity": self.lateral_velocity, "yaw_rate": self.yaw_rate},
             "window": None if self.window is None else self.window.describe(),
         }
 

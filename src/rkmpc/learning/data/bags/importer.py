@@ -82,6 +82,8 @@ def streams_to_dataset(
         tolerance=config.tolerance,
         lr=vehicle.lr if config.odom_frame == "rear-axle" else 0.0,
         min_slip_speed=config.min_slip_speed,
+        lateral_velocity=config.lateral_velocity,
+        yaw_rate=config.yaw_rate,
     )
     found = transitions(samples)
     if len(found) < config.min_samples:

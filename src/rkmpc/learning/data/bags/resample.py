@@ -141,6 +141,8 @@ def resample(
     tolerance: float,
     lr: float = 0.0,
     min_slip_speed: float = 0.5,
+    lateral_velocity: bool = True,
+    yaw_rate: bool = True,
 ) -> Samples:
     """Resample odometry onto the control period and hold the commands over it (module docstring).
 
@@ -162,6 +164,9 @@ def resample(
         Distance (m) the odometry's frame lies behind the centre of gravity (0: it is the CoG).
     min_slip_speed : float
         Speed (m/s) below which the side-slip angle is NaN.
+    lateral_velocity, yaw_rate : bool
+        Whether the twist's ``linear.y`` and ``angular.z`` were measured; False: the side-slip
+        angle, the yaw rate is NaN.
 
     Returns
     -------
@@ -175,11 +180,15 @@ def resample(
     values[:, _YAW] = np.unwrap(values[:, _YAW])
     known = (odom.stamps - origin) / _NS
     at = (stamps - origin) / _NS
-    x, y, yaw, vx, vy, yaw_rate = (np.interp(at, known, values[:, j]) for j in range(len(ODOM_FIELDS)))
+    x, y, yaw, vx, vy, rate = (np.interp(at, known, values[:, j]) for j in range(len(ODOM_FIELDS)))
     with np.errstate(invalid="ignore"):
         slip = np.where(np.hypot(vx, vy) >= min_slip_speed, np.arctan2(vy, vx), math.nan)
+    if not lateral_velocity:
+        slip = np.full(len(stamps), math.nan)
+    if not yaw_rate:
+        rate = np.full(len(stamps), math.nan)
     wheel = _steer_at(steer, stamps, gap_ns) if steer is not None else np.full(len(stamps), math.nan)
-    obs = np.stack([x, y, wrap_angle(yaw), vx, yaw_rate, slip, wheel], axis=1)
+    obs = np.stack([x, y, wrap_angle(yaw), vx, rate, slip, wheel], axis=1)
     held = np.searchsorted(drive.stamps, stamps + tol_ns, side="right") - 1
     fresh = (held >= 0) & (stamps - drive.stamps[np.maximum(held, 0)] <= gap_ns)
     command = drive.values[np.maximum(held, 0)]
