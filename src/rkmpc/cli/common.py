@@ -115,7 +115,8 @@ def add_config_args(parser: argparse.ArgumentParser, *, pace: bool = True) -> No
         default=None,
         metavar="PROFILE",
         help="what the simulated car measures: ideal, no-steer, f1tenth-real (a real F1TENTH car: no "
-        "wheel angle, a late noisy localiser); else the --config file's [sensors] (default: ideal)",
+        "wheel angle, a late noisy localiser); else the --config file's [sensors] (default: ideal; "
+        "study cars and car-loop: f1tenth-real)",
     )
     if pace:
         parser.add_argument(
