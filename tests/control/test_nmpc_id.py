@@ -21,7 +21,7 @@ from rkmpc.vehicle.params import f1tenth
 from rkmpc.vehicle.tyres import LinearTyre, PacejkaTyre, TyreModel
 
 
-def _model(wheel: str = "measured", delay: float = 0.0) -> IdentifiedModel:
+def _model(wheel: str = "measured", delay: float = 0.0, servo: str = "identified") -> IdentifiedModel:
     tyres = IdentifiedTyres(
         structure="linear",
         front=AxleCurve.linear(4.0),
@@ -30,6 +30,7 @@ def _model(wheel: str = "measured", delay: float = 0.0) -> IdentifiedModel:
         status_reason="test",
         fitted_on="slip_angle",
         wheel=wheel,
+        servo=servo,
         n_samples=500,
         folds=5,
     )
@@ -99,6 +100,14 @@ def test_a_wheel_run_from_commands_ignores_the_measured_one(builtin_scenario):
     commands = IdentifiedDynamicNMPC(sc.reference, sc.vehicle, _model("commands"))
     assert measured._wheel_measurement(obs) == 0.2
     assert math.isnan(commands._wheel_measurement(obs))
+    # The wheel is run through the servo the tyres were identified with.
+    servos = {
+        source: IdentifiedDynamicNMPC(sc.reference, sc.vehicle, _model("commands", 0.03, source)).servo
+        for source in ("identified", "lag", "nominal")
+    }
+    assert (servos["identified"].delay, servos["identified"].time_constant) == (0.03, 0.1)
+    assert (servos["lag"].delay, servos["lag"].time_constant) == (0.0, 0.1)
+    assert (servos["nominal"].delay, servos["nominal"].time_constant) == (0.0, 0.158)
 
 
 @pytest.mark.slow

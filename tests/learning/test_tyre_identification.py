@@ -84,6 +84,7 @@ def _tyres(**changes) -> IdentifiedTyres:
         "status_reason": "test",
         "fitted_on": "slip_angle",
         "wheel": "measured",
+        "servo": "identified",
         "n_samples": 500,
         "folds": 5,
         "heldout_score": 0.2,
@@ -247,7 +248,22 @@ def test_without_side_slip_the_ratio_is_identified(zoo_laps):
     assert tyres.structure in ("ratio", "linear") and math.isnan(tyres.lateral_velocity_rmse)
     truth = car.tyre_front.stiffness_per_load / car.tyre_rear.stiffness_per_load
     assert tyres.front.stiffness / tyres.rear.stiffness == pytest.approx(truth, rel=0.05)
-    # Nor the wheel angle: it is run from the commands, and said so.
+
+
+@pytest.mark.slow
+def test_without_side_slip_nor_wheel_angle_the_servo_is_chosen_with_the_tyres(zoo_laps):
+    from rkmpc.learning.identification import identify
+
+    blind = without(zoo_laps["low-grip"], 5, 6)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", IdentificationWarning)
+        servo = identify(blind, f1tenth())
+    assert servo.fitted_on == "yaw_rate" and servo.servo_delay > 0  # the chassis's yaw lag, as a delay
     with pytest.warns(IdentificationWarning, match="wheel angle is not measured"):
-        blind = identify_tyres(without(zoo_laps["low-grip"], 5, 6), f1tenth())
-    assert blind.wheel == "commands" and blind.status == "identified"
+        tyres = identify_tyres(blind, f1tenth(), servo)
+    assert any("only their ratio" in w for w in tyres.warnings)  # the scale is the servo's lag's
+    names = [name for name, _ in tyres.candidates]
+    assert names[:2] == ["nominal", "ratio"] and "nominal, nominal servo" in names
+    # Through the identified servo, the chassis's lag counts twice: a servo without the delay wins.
+    assert tyres.wheel == "commands" and tyres.servo in ("lag", "nominal")
+    assert tyres.heldout_score < 0.5 * tyres.nominal_score

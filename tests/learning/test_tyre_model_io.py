@@ -23,6 +23,7 @@ def _model(tyres: bool = True) -> IdentifiedModel:
         status_reason="pacejka predicts held-out data with a score 0.2, the nominal tyres 1.3",
         fitted_on="slip_angle",
         wheel="measured",
+        servo="identified",
         n_samples=1099,
         folds=5,
         heldout_score=0.2,

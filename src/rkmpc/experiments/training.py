@@ -120,8 +120,9 @@ def describe_tyres(tyres: IdentifiedTyres) -> str:
         if math.isfinite(tyres.lateral_velocity_rmse)
         else ""
     )
+    wheel = "measured" if tyres.wheel == "measured" else f"run through the {tyres.servo} servo"
     return (
-        f"tyres {tyres.status} ({tyres.structure}, fitted on {signal}, wheel {tyres.wheel}): "
+        f"tyres {tyres.status} ({tyres.structure}, fitted on {signal}, wheel {wheel}): "
         f"front {tyres.front.describe()}, rear {tyres.rear.describe()}; "
         f"implied K {tyres.understeer_gradient():.4f} s^2/m; "
         f"slip angles reached {tyres.slip_reach[0]:.3f} / {tyres.slip_reach[1]:.3f} rad; "

@@ -19,11 +19,24 @@ import numpy as np
 from rkmpc.core.observation import OBSERVATION_FIELDS
 from rkmpc.learning.data.dataset import TransitionDataset
 from rkmpc.learning.identification import MIN_TRANSITIONS, IdentifiedModel, wheel_from_commands
+from rkmpc.learning.model_choice import MIN_LATERAL_ACCELERATION
 from rkmpc.learning.tyre_dynamics import Chassis, Runs, slip_angles
 from rkmpc.learning.tyre_model import AxleCurve, nominal_curves
 from rkmpc.vehicle.params import VehicleParams
 
-__all__ = ["BURN_IN", "RUN_PERIODS", "TyreData", "chains", "prepare", "steady_start"]
+__all__ = [
+    "BURN_IN",
+    "MIN_SLIP_REACH",
+    "RUN_PERIODS",
+    "TyreData",
+    "chains",
+    "confounded",
+    "limits",
+    "prepare",
+    "reach_notes",
+    "steady_start",
+    "unexcited",
+]
 
 _SPEED, _YAW_RATE, _SLIP, _STEER = (
     OBSERVATION_FIELDS.index(n) for n in ("speed", "yaw_rate", "slip_angle", "steer_angle")
@@ -32,6 +45,8 @@ _SPEED, _YAW_RATE, _SLIP, _STEER = (
 RUN_PERIODS = 8
 #: ... and the first periods of it not scored (the lateral modes forget the start within them).
 BURN_IN = 3
+#: A slip angle (rad, 98th percentile) below which the data do not load the tyres.
+MIN_SLIP_REACH = 0.01
 
 
 @dataclass(frozen=True)
@@ -174,3 +189,70 @@ def steady_start(d: TyreData, runs: Runs, rear: AxleCurve, chassis: Chassis) -> 
     v, r = runs.speed[:, 0], runs.yaw_rate0
     beta0 = np.arctan(chassis.lr * r / v - v * r / (chassis.gravity * rear.stiffness))
     return replace(runs, beta0=beta0)
+
+
+def confounded(d: TyreData, servo: IdentifiedModel) -> bool:
+    """Whether the servo run from the commands was fitted on the yaw rate's response without a side slip.
+
+    Such a servo holds the chassis's own lag in building up yaw (:mod:`rkmpc.learning.yaw_fit`), the
+    lag the stiffnesses' scale sets: the yaw rate cannot tell the two apart.
+    """
+    return (
+        not d.slip
+        and d.wheel == "commands"
+        and servo.fitted_on == "yaw_rate"
+        and servo.servo_structure != "nominal"
+    )
+
+
+def limits(d: TyreData, servo: IdentifiedModel) -> list[str]:
+    """What the data cannot support, in words (warnings of the identified tyres)."""
+    notes = []
+    if confounded(d, servo):
+        notes.append(
+            "tyres: the servo was fitted on the yaw rate, so it already holds the chassis's lag in "
+            "building up yaw, which the stiffnesses' scale sets: through it only their ratio (the "
+            "understeer) is fitted; every candidate is also fitted with the wheel run through the "
+            "servo's lag without its delay and through the nominal servo, and held-out data choose"
+        )
+    if not d.slip:
+        notes.append(
+            "tyres: the side slip is not measured: only the yaw rate's response is fitted, which fixes the "
+            "ratio of the stiffnesses (the understeer gradient) and shows their scale only in the yaw "
+            "transient; no Pacejka curvature is fitted"
+        )
+    if d.wheel == "commands":
+        notes.append(
+            "tyres: the wheel angle is not measured: run from the commands through the "
+            f"{servo.servo_structure} servo (a controller must run it the same way)"
+        )
+    return notes
+
+
+def unexcited(d: TyreData, n: int) -> str | None:
+    """Why ``d`` (``n`` usable transitions) cannot load the tyres enough for a fit, or None."""
+    if n < MIN_TRANSITIONS:
+        return (
+            f"only {n} transitions faster than the minimum speed with every signal "
+            f"(at least {MIN_TRANSITIONS})"
+        )
+    if d.lateral_accel < MIN_LATERAL_ACCELERATION or max(d.reach) < MIN_SLIP_REACH:
+        return (
+            f"the data do not excite the tyres ({d.lateral_accel:.2f} m/s^2 lateral acceleration RMS, "
+            f"slip angles up to {max(d.reach):.3f} rad; at least {MIN_LATERAL_ACCELERATION:g} "
+            f"and {MIN_SLIP_REACH:g})"
+        )
+    return None
+
+
+def reach_notes(d: TyreData, front: AxleCurve, rear: AxleCurve) -> list[str]:
+    """A warning per axle whose data reach less than 80 % of its fitted peak."""
+    notes = []
+    for axle, curve, reach in (("front", front, d.reach[0]), ("rear", rear, d.reach[1])):
+        share = float(curve.force_per_load(np.array(reach))) / curve.peak
+        if share < 0.8:
+            notes.append(
+                f"tyres: the data reach {reach:.3f} rad on the {axle} axle, "
+                f"{100 * share:.0f} % of the fitted peak {curve.peak:.2f}: the peak is an extrapolation"
+            )
+    return notes

@@ -21,7 +21,11 @@ axle distances, height of the centre of gravity):
 * ``nominal`` (0 parameters): the car's nominal tyres;
 * ``grip`` (2): each axle's nominal curve scaled (a friction or tyre-wear change);
 * ``ratio`` (1, without side slip only): linear curves of the nominal stiffnesses' geometric
-  mean and a fitted ratio, the understeer gradient alone;
+  mean and a fitted ratio, the understeer gradient alone; the only candidate when the wheel angle
+  is run through a servo fitted on the yaw rate, which already holds the chassis's lag (the
+  scale's effect) and so leaves the scale unidentifiable. Every candidate (the nominal tyres
+  too) is then also fitted with the wheel run through that servo's lag without its delay and
+  through the car's nominal servo, and held-out data choose the servo with the tyres;
 * ``linear`` (2): ``Fy / Fz = c alpha`` per axle;
 * ``pacejka`` (4, with side slip only): the simplified magic formula ``D sin(C atan(B alpha))``
   with the stiffness ``B C D`` and the peak factor ``D`` fitted per axle and ``C`` held at the
@@ -41,7 +45,7 @@ from __future__ import annotations
 import math
 import warnings
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -51,19 +55,24 @@ from rkmpc.core.errors import IdentificationWarning, ParameterError
 from rkmpc.core.validation import is_integer, is_positive_number
 from rkmpc.learning.data.dataset import TransitionDataset
 from rkmpc.learning.heldout import DEFAULT_FOLDS, GAP_SECONDS, Folds, Score, choose, time_blocks
-from rkmpc.learning.identification import MIN_TRANSITIONS, IdentifiedModel
-from rkmpc.learning.model_choice import MIN_LATERAL_ACCELERATION
-from rkmpc.learning.tyre_data import TyreData, prepare, steady_start
+from rkmpc.learning.identification import IdentifiedModel
+from rkmpc.learning.tyre_data import (
+    TyreData,
+    confounded,
+    limits,
+    prepare,
+    reach_notes,
+    steady_start,
+    unexcited,
+)
 from rkmpc.learning.tyre_dynamics import Chassis, Runs, predict
 from rkmpc.learning.tyre_model import MAX_PEAK_FACTOR, AxleCurve, IdentifiedTyres, nominal_curves
 from rkmpc.vehicle.params import VehicleParams
 
-__all__ = ["MAX_EVALUATIONS", "MIN_SLIP_REACH", "identify_tyres"]
+__all__ = ["MAX_EVALUATIONS", "identify_tyres"]
 
 #: Model evaluations of one least-squares fit at most (an iteration cap: no wall-clock budget).
 MAX_EVALUATIONS = 200
-#: A slip angle (rad, 98th percentile) below which the data do not load the tyres.
-MIN_SLIP_REACH = 0.01
 
 
 @dataclass(frozen=True)
@@ -78,7 +87,9 @@ class _Structure:
     nonlinear: bool
 
 
-def _structures(nominal: tuple[AxleCurve, AxleCurve], slip: bool) -> list[_Structure]:
+def _structures(nominal: tuple[AxleCurve, AxleCurve], slip: bool, scale: bool) -> list[_Structure]:
+    """The candidates: with side slip, grip, linear and Pacejka; without, grip, ratio and linear, or the
+    ratio alone when the scale of the stiffnesses cannot be told from the servo (``scale`` False)."""
     front, rear = nominal
     k = np.log([front.stiffness, rear.stiffness])
     d = np.log([front.parameters[2], rear.parameters[2]])
@@ -114,7 +125,9 @@ def _structures(nominal: tuple[AxleCurve, AxleCurve], slip: bool) -> list[_Struc
     start = np.array([k[0], d[0], k[1], d[1]])
     high = np.array([log(50.0), top] * 2)
     pacejka_s = _Structure("pacejka", start, log([0.2, 0.05] * 2), high, pacejka, True)
-    return [grip_s, linear_s, pacejka_s] if slip else [grip_s, ratio_s, linear_s]
+    if slip:
+        return [grip_s, linear_s, pacejka_s]
+    return [grip_s, ratio_s, linear_s] if scale else [ratio_s]
 
 
 def _residuals(d: TyreData, runs: Runs, curves: tuple[AxleCurve, AxleCurve], chassis: Chassis) -> np.ndarray:
@@ -154,14 +167,20 @@ def _errors(
 
 @dataclass
 class _Candidate:
-    structure: _Structure | None
+    structure: _Structure | None  # None: the nominal tyres
     score: Score
     sums: np.ndarray  # held-out yaw-rate and lateral squared errors, (2,)
     final: np.ndarray | None
+    servo: str  # the servo the wheel was run through (SERVO_SOURCES)
 
 
 def _assess(
-    s: _Structure | None, d: TyreData, folds: Folds, chassis: Chassis, nominal: tuple[AxleCurve, AxleCurve]
+    s: _Structure | None,
+    d: TyreData,
+    folds: Folds,
+    chassis: Chassis,
+    nominal: tuple[AxleCurve, AxleCurve],
+    servo: str = "identified",
 ) -> _Candidate:
     """Fit ``s`` on all the data and on each fold's training runs; score it on each held-out block."""
     n_runs = len(d.cover)
@@ -177,9 +196,26 @@ def _assess(
         errors = _errors(d, curves, chassis, np.flatnonzero(test[f]))
         sse[f], sums = errors[0].sum(), sums + errors[1:].sum(axis=1)
     counts = np.array([count[test[f]].sum() for f in range(folds.count)])
-    name = "nominal" if s is None else s.name
+    name = ("nominal" if s is None else s.name) + ("" if servo == "identified" else f", {servo} servo")
     parameters = 0 if s is None else len(s.start)
-    return _Candidate(s, Score(name, parameters, sse, counts, bool(s and s.nonlinear)), sums, final)
+    score = Score(name, parameters, sse, counts, bool(s and s.nonlinear))
+    return _Candidate(s, score, sums, final, servo)
+
+
+def _servo_variants(
+    data: TransitionDataset, vehicle: VehicleParams, servo: IdentifiedModel, min_speed: float
+) -> list[tuple[str, TyreData]]:
+    """The data with the wheel run through the identified servo's lag alone and the nominal servo.
+
+    For a servo fitted on the yaw rate (:func:`~rkmpc.learning.tyre_data.confounded`): its delay
+    holds the chassis's lag in building up yaw, which a dynamic model has already.
+    """
+    out = []
+    if servo.servo_delay > 0.0:
+        out.append(("lag", prepare(data, vehicle, replace(servo, servo_delay=0.0), min_speed)))
+    nominal = IdentifiedModel(vehicle.steering.time_constant, 0.0, math.nan, math.nan, 0, "nominal")
+    out.append(("nominal", prepare(data, vehicle, nominal, min_speed)))
+    return out
 
 
 def identify_tyres(
@@ -227,22 +263,28 @@ def identify_tyres(
         servo = IdentifiedModel(vehicle.steering.time_constant, 0.0, math.nan, math.nan, 0, "nominal")
     d = prepare(data, vehicle, servo, min_speed)
     nominal, chassis = nominal_curves(vehicle), Chassis.of(vehicle)
-    notes = _limits(d, servo)
+    notes = limits(d, servo)
     n = int(d.usable.sum())
     base: dict[str, Any] = {
         "fitted_on": "slip_angle" if d.slip else "yaw_rate",
         "wheel": d.wheel,
+        "servo": "identified",
         "n_samples": n,
         "slip_reach": d.reach,
     }
     blocks = time_blocks(d.usable, folds, max(1, round(GAP_SECONDS / data.dt)))
-    reason = _unexcited(d, n)
+    reason = unexcited(d, n)
     if reason is None and blocks is None:
         reason = f"too few transitions ({n}) for held-out blocks: no fit can be checked"
     if reason is not None or blocks is None:
         return _finish(nominal, "nominal", reason or "", notes, base)
     nominal_c = _assess(None, d, blocks, chassis, nominal)
-    candidates = [nominal_c] + [_assess(s, d, blocks, chassis, nominal) for s in _structures(nominal, d.slip)]
+    structures = _structures(nominal, d.slip, scale=not confounded(d, servo))
+    candidates = [nominal_c] + [_assess(s, d, blocks, chassis, nominal) for s in structures]
+    if confounded(d, servo):  # the wheel run through servos without the chassis's lag: the scale shows
+        every = _structures(nominal, d.slip, scale=True)
+        for name, other in _servo_variants(data, vehicle, servo, min_speed):
+            candidates += [_assess(s, other, blocks, chassis, nominal, name) for s in [None, *every]]
     base.update(
         folds=blocks.count,
         nominal_score=nominal_c.score.mse,
@@ -252,15 +294,21 @@ def identify_tyres(
     while (chosen := choose([c.score for c in candidates], nominal_c.score)) is not nominal_c.score:
         candidate = next(c for c in candidates if c.score is chosen)
         s, final = candidate.structure, candidate.final
-        assert s is not None and final is not None  # only the nominal candidate has none
+        base.update(servo=candidate.servo, heldout_score=chosen.mse, **_rmse("", candidate, d))
+        if s is None or final is None:  # the nominal tyres, the wheel run through another servo
+            reason = (
+                f"the nominal tyres predict held-out data best with the wheel run through the "
+                f"{candidate.servo} servo (score {chosen.mse:.4g}; through the identified one "
+                f"{nominal_c.score.mse:.4g})"
+            )
+            return _finish(nominal, "nominal", reason, notes, base)
         if not (np.isclose(final, s.low, atol=1e-3) | np.isclose(final, s.high, atol=1e-3)).any():
             front, rear = s.curves(final)
             reason = (
                 f"{s.name} predicts held-out data with a score {chosen.mse:.4g}, "
                 f"the nominal tyres {nominal_c.score.mse:.4g}"
             )
-            notes.extend(_reach_notes(d, front, rear) if s.name == "pacejka" else [])
-            base.update(heldout_score=chosen.mse, **_rmse("", candidate, d))
+            notes.extend(reach_notes(d, front, rear) if s.name == "pacejka" else [])
             return _finish((front, rear), s.name, reason, notes, base, status="identified")
         notes.append(f"tyres: the {s.name} fit ends on a bound of its parameters: dropped")
         candidates.remove(candidate)
@@ -270,7 +318,7 @@ def identify_tyres(
         if best
         else ""
     )
-    base.update(heldout_score=nominal_c.score.mse, **_rmse("", nominal_c, d))
+    base.update(servo="identified", heldout_score=nominal_c.score.mse, **_rmse("", nominal_c, d))
     return _finish(nominal, "nominal", reason, notes, base)
 
 
@@ -281,49 +329,6 @@ def _rmse(prefix: str, c: _Candidate, d: TyreData) -> dict[str, float]:
         f"{prefix}yaw_rate_rmse": math.sqrt(c.sums[0] / total) if total else math.nan,
         f"{prefix}lateral_velocity_rmse": lateral,
     }
-
-
-def _limits(d: TyreData, servo: IdentifiedModel) -> list[str]:
-    notes = []
-    if not d.slip:
-        notes.append(
-            "tyres: the side slip is not measured: only the yaw rate's response is fitted, which fixes the "
-            "ratio of the stiffnesses (the understeer gradient) and shows their scale only in the yaw "
-            "transient; no Pacejka curvature is fitted"
-        )
-    if d.wheel == "commands":
-        notes.append(
-            "tyres: the wheel angle is not measured: run from the commands through the "
-            f"{servo.servo_structure} servo (a controller must run it the same way)"
-        )
-    return notes
-
-
-def _unexcited(d: TyreData, n: int) -> str | None:
-    if n < MIN_TRANSITIONS:
-        return (
-            f"only {n} transitions faster than the minimum speed with every signal "
-            f"(at least {MIN_TRANSITIONS})"
-        )
-    if d.lateral_accel < MIN_LATERAL_ACCELERATION or max(d.reach) < MIN_SLIP_REACH:
-        return (
-            f"the data do not excite the tyres ({d.lateral_accel:.2f} m/s^2 lateral acceleration RMS, "
-            f"slip angles up to {max(d.reach):.3f} rad; at least {MIN_LATERAL_ACCELERATION:g} "
-            f"and {MIN_SLIP_REACH:g})"
-        )
-    return None
-
-
-def _reach_notes(d: TyreData, front: AxleCurve, rear: AxleCurve) -> list[str]:
-    notes = []
-    for axle, curve, reach in (("front", front, d.reach[0]), ("rear", rear, d.reach[1])):
-        share = float(curve.force_per_load(np.array(reach))) / curve.peak
-        if share < 0.8:
-            notes.append(
-                f"tyres: the data reach {reach:.3f} rad on the {axle} axle, "
-                f"{100 * share:.0f} % of the fitted peak {curve.peak:.2f}: the peak is an extrapolation"
-            )
-    return notes
 
 
 def _finish(

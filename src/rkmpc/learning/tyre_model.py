@@ -29,6 +29,7 @@ __all__ = [
     "CURVE_KINDS",
     "MAX_PEAK_FACTOR",
     "MAX_STIFFNESS",
+    "SERVO_SOURCES",
     "TYRE_SIGNALS",
     "TYRE_STATUSES",
     "TYRE_STRUCTURES",
@@ -48,6 +49,9 @@ TYRE_STATUSES = ("identified", "nominal")
 TYRE_SIGNALS = ("slip_angle", "yaw_rate")
 #: Where the wheel angle of the fit came from: measured, or run from the commands through the servo.
 WHEEL_SOURCES = ("measured", "commands")
+#: The servo a wheel run from the commands goes through: the identified one, its lag without its
+#: delay, or the car's nominal one.
+SERVO_SOURCES = ("identified", "lag", "nominal")
 #: Largest plausible peak factor D (friction included) and stiffness per unit load (1/rad).
 MAX_PEAK_FACTOR, MAX_STIFFNESS = 5.0, 100.0
 
@@ -187,6 +191,10 @@ class IdentifiedTyres:
         One of :data:`TYRE_SIGNALS`.
     wheel : str
         One of :data:`WHEEL_SOURCES`: the wheel angle the fit used, which a controller must use too.
+    servo : str
+        One of :data:`SERVO_SOURCES`: the servo that wheel was run through from the commands (chosen
+        on held-out blocks when the identified servo was fitted on the yaw rate and holds the
+        chassis's lag; else the identified one).
     n_samples, folds : int
         Transitions the final fit used; time blocks of the cross-validation (0: none).
     heldout_score, nominal_score : float
@@ -213,6 +221,7 @@ class IdentifiedTyres:
     status_reason: str
     fitted_on: str
     wheel: str
+    servo: str
     n_samples: int
     folds: int
     heldout_score: float = math.nan
@@ -233,6 +242,7 @@ class IdentifiedTyres:
             ("status", TYRE_STATUSES),
             ("fitted_on", TYRE_SIGNALS),
             ("wheel", WHEEL_SOURCES),
+            ("servo", SERVO_SOURCES),
         ):
             if getattr(self, field) not in choices:
                 raise ParameterError(
