@@ -57,7 +57,7 @@ def with_settings(scenario: Scenario, changes: dict[str, dict[str, Any]]) -> Sce
 
 def learned_cases(scenario: Scenario, kmpc_model: Path | None) -> list[Case]:
     """Learn as ``rkmpc compare`` does: two LMPC laps of the track, models from the cache when there."""
-    names = ("lmpc-id", "rkmpc", "rkmpc-paper", "kmpc")
+    names = ("lmpc-id", "nmpc-id", "rkmpc", "rkmpc-paper", "kmpc")
     study = CompareConfig(
         track=scenario.track.source or scenario.track.name,
         car=scenario.car,

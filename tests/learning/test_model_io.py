@@ -43,7 +43,7 @@ def _identified() -> IdentifiedModel:
 
 def _payload(**changes) -> dict:
     model = json.loads(json.dumps(to_json_ready(_identified())))
-    payload = {"format": "rkmpc-identified", "version": 3, "model": model, "metadata": {}}
+    payload = {"format": "rkmpc-identified", "version": 4, "model": model, "metadata": {}}
     payload.update(changes)
     return payload
 
@@ -96,7 +96,7 @@ def test_identified_round_trip(tmp_path):
     # The file is plain JSON with the format tag, the model's fields and the metadata.
     payload = json.loads(path.read_text())
     assert payload["format"] == "rkmpc-identified"
-    assert payload["version"] == 3
+    assert payload["version"] == 4
     assert payload["model"] == {
         **asdict(model),
         "warnings": list(model.warnings),
@@ -174,7 +174,7 @@ def test_a_version_1_file_with_version_2_fields_is_refused(tmp_path):
     assert info.value.field == "model"
 
 
-@pytest.mark.parametrize("version", [4, 0, "2", None, True])
+@pytest.mark.parametrize("version", [5, 0, "2", None, True])
 def test_an_unknown_version_is_refused(tmp_path, version):
     path = tmp_path / "model.json"
     _write(path, _payload(version=version))

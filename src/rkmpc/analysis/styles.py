@@ -34,7 +34,7 @@ class ControllerStyle:
 
 
 #: The controllers learned from data (drawn solid); every other known one is a baseline.
-LEARNED: frozenset[str] = frozenset({"kmpc", "rkmpc", "rkmpc-paper", "lmpc-id"})
+LEARNED: frozenset[str] = frozenset({"kmpc", "rkmpc", "rkmpc-paper", "lmpc-id", "nmpc-id"})
 
 #: Fixed style per controller name.
 CONTROLLER_STYLE: dict[str, ControllerStyle] = {
@@ -45,6 +45,7 @@ CONTROLLER_STYLE: dict[str, ControllerStyle] = {
     "nmpc-acados": ControllerStyle(_ORANGE, ":", 1.2),
     "nmpc-acados-dynamic": ControllerStyle(_BLACK, ":", 1.2),
     "lmpc-id": ControllerStyle(_SKY_BLUE, "-", 1.1),
+    "nmpc-id": ControllerStyle(_BLACK, "-", 1.1),
     "kmpc": ControllerStyle(_GREEN, "-", 1.1),
     "rkmpc-paper": ControllerStyle(_PURPLE, "-", 1.1),
     "rkmpc": ControllerStyle(_VERMILLION, "-", 1.8),

@@ -246,7 +246,10 @@ def add_scenario_args(
         action="append",
         default=[],
         metavar="[NAME=]PATH",
-        help="model file of a learned controller (rkmpc, rkmpc-paper, kmpc, lmpc-id); repeat as NAME=PATH",
+        help=(
+            "model file of a learned controller (rkmpc, rkmpc-paper, kmpc, lmpc-id, nmpc-id); "
+            "repeat as NAME=PATH"
+        ),
     )
 
 

@@ -66,7 +66,7 @@ def cmd_train(args: argparse.Namespace) -> int:
             args.out,
             seed=car.training.seed,
             epochs=epochs,
-            on_epoch=on_epoch if args.kind != "identified" else None,
+            on_epoch=on_epoch if not args.kind.startswith("identified") else None,
             allow_mismatch=args.allow_mismatch,
             source=str(args.data),
         )

@@ -54,6 +54,7 @@ CONTROLLERS: Registry[_Lazy] = Registry(
         "lmpc-id": _Lazy("rkmpc.control.linear.lmpc_id:IdentifiedLMPC"),
         "nmpc": _Lazy("rkmpc.control.nonlinear.nmpc:KinematicNMPC"),
         "nmpc-dynamic": _Lazy("rkmpc.control.nonlinear.nmpc:DynamicNMPC"),
+        "nmpc-id": _Lazy("rkmpc.control.nonlinear.nmpc_id:IdentifiedDynamicNMPC"),
         "nmpc-acados": _Lazy("rkmpc.control.nonlinear.acados:AcadosKinematicNMPC"),
         "nmpc-acados-dynamic": _Lazy("rkmpc.control.nonlinear.acados_dynamic:AcadosDynamicNMPC"),
         "kmpc": _Lazy("rkmpc.control.learned.kmpc:KoopmanMPC"),
@@ -86,11 +87,12 @@ def make_controller(
     name : str
         Registry name: ``"pp"`` (pure pursuit), ``"lmpc"`` (linear MPC),
         ``"lmpc-id"`` (LMPC with identified servo lag and understeer), ``"nmpc"`` and
-        ``"nmpc-dynamic"`` (nonlinear MPC, CasADi), ``"nmpc-acados"`` and
+        ``"nmpc-dynamic"`` (nonlinear MPC, CasADi), ``"nmpc-id"`` (the dynamic one on identified
+        tyres and servo, one SQP iteration per period), ``"nmpc-acados"`` and
         ``"nmpc-acados-dynamic"`` (the same as acados real-time iterations; needs
         the optional extra ``rkmpc[acados]``), ``"kmpc"``
         (Koopman MPC), ``"rkmpc"`` (residual Koopman MPC) or ``"rkmpc-paper"``
-        (its literal reading). The last four need ``model``.
+        (its literal reading). ``lmpc-id``, ``nmpc-id`` and the last three need ``model``.
     reference : Reference
         Path and speed profile to track.
     vehicle : VehicleParams

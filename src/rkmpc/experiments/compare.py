@@ -44,7 +44,7 @@ __all__ = [
 LEARNED_CONTROLLERS = ("lmpc", "lmpc-id", "rkmpc-paper", "rkmpc", "kmpc")
 
 #: Every controller of the paper's comparison plus the extra baselines, in table order.
-ALL_CONTROLLERS = ("pp", "lmpc", "lmpc-id", "nmpc", "nmpc-dynamic", "kmpc", "rkmpc-paper", "rkmpc")
+ALL_CONTROLLERS = ("pp", "lmpc", "lmpc-id", "nmpc", "nmpc-dynamic", "nmpc-id", "kmpc", "rkmpc-paper", "rkmpc")
 
 #: Relative growth of the mean lateral error above which a fault counts as degrading a controller.
 DEGRADE_THRESHOLD = 0.25

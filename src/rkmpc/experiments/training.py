@@ -20,12 +20,14 @@ from rkmpc.learning.data.dataset import TransitionDataset
 from rkmpc.learning.identification import IdentifiedModel, identify
 from rkmpc.learning.learn import Learned, learn, save_learned
 from rkmpc.learning.recipes import KoopmanLearner, Recipe, recipe_of_kind
+from rkmpc.learning.tyre_model import IdentifiedTyres
 from rkmpc.vehicle.params import VehicleParams
 
 __all__ = [
     "describe_heldout",
     "describe_identified",
     "describe_learned",
+    "describe_tyres",
     "estimated_for",
     "identified_steering",
     "train_to_file",
@@ -109,6 +111,27 @@ def describe_heldout(model: IdentifiedModel) -> str:
     return f"status {model.status} ({model.folds} time blocks): {figures}"
 
 
+def describe_tyres(tyres: IdentifiedTyres) -> str:
+    """One line: the tyre structure, both curves, the implied understeer and the held-out figures."""
+    signal = {"slip_angle": "yaw rate and side slip", "yaw_rate": "the yaw rate alone"}[tyres.fitted_on]
+    lateral = (
+        f", lateral velocity {tyres.lateral_velocity_rmse:.4f} m/s "
+        f"(nominal {tyres.nominal_lateral_velocity_rmse:.4f})"
+        if math.isfinite(tyres.lateral_velocity_rmse)
+        else ""
+    )
+    wheel = "measured" if tyres.wheel == "measured" else f"run through the {tyres.servo} servo"
+    return (
+        f"tyres {tyres.status} ({tyres.structure}, fitted on {signal}, wheel {wheel}): "
+        f"front {tyres.front.describe()}, rear {tyres.rear.describe()}; "
+        f"implied K {tyres.understeer_gradient():.4f} s^2/m; "
+        f"slip angles reached {tyres.slip_reach[0]:.3f} / {tyres.slip_reach[1]:.3f} rad; "
+        f"held-out score {tyres.heldout_score:.4g} against the nominal tyres' {tyres.nominal_score:.4g} "
+        f"({tyres.folds} blocks): yaw rate {tyres.yaw_rate_rmse:.4f} rad/s "
+        f"(nominal {tyres.nominal_yaw_rate_rmse:.4f}){lateral}"
+    )
+
+
 def train_to_file(
     data: TransitionDataset,
     made_for: Provenance,
@@ -189,9 +212,13 @@ def describe_learned(learned: Learned, out: str | Path) -> list[str]:
     model, report = learned.model, learned.report
     if isinstance(model, IdentifiedModel):
         loud = [f"MARKED NOMINAL: {model.status_reason}"] if model.status == "nominal" else []
+        tyres = model.tyres
+        if tyres is not None and tyres.status == "nominal":
+            loud.append(f"TYRES MARKED NOMINAL: {tyres.status_reason}")
         return [
             f"{describe_identified(model)} -> {out}",
             describe_heldout(model),
+            *([describe_tyres(tyres)] if tyres is not None else []),
             *loud,
             *(f"warning: {w}" for w in learned.warnings),
         ]

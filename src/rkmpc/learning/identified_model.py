@@ -1,22 +1,25 @@
-"""The identified model: the steering servo, the understeer gradient and how well they predict.
+"""The identified model: the steering servo, the understeer gradient, the tyres and how well they predict.
 
 :class:`IdentifiedModel` is what :func:`rkmpc.learning.identification.identify`
 returns, ``lmpc-id`` drives with and an identified-model file holds
 (:mod:`rkmpc.learning.io`). Its ``status`` says whether the model was checked on
 held-out data and beat the car's nominal model there (``identified``), did not
 and is the nominal model (``nominal``, with the reason), or predates those checks
-(``unchecked``: files of versions 1 and 2, models built by hand).
+(``unchecked``: files of versions 1 and 2, models built by hand). The tyres, when they were
+identified too (``nmpc-id``'s model, :mod:`rkmpc.learning.tyre_fit`), carry a status of their own.
 """
 
 from __future__ import annotations
 
 import math
 import numbers
+from collections.abc import Mapping
 from dataclasses import KW_ONLY, dataclass
 
 from rkmpc.core.errors import ParameterError
 from rkmpc.core.validation import is_integer
 from rkmpc.learning.servo_model import MAX_DELAY, SERVO_STRUCTURES
+from rkmpc.learning.tyre_model import IdentifiedTyres
 from rkmpc.learning.understeer import UNDERSTEER_RANGE
 
 __all__ = [
@@ -111,6 +114,9 @@ class IdentifiedModel:
     heldout_candidates : tuple of (str, float), keyword-only
         Every candidate compared and its held-out yaw-rate RMSE (rad/s; of the wheel angle, rad,
         when the servo was fitted on a measured one).
+    tyres : IdentifiedTyres or None, keyword-only
+        The tyre curves identified from the same data, with their own status and held-out figures;
+        None when they were not identified (``lmpc-id``'s model, files of versions 1 to 3).
 
     Raises
     ------
@@ -141,6 +147,7 @@ class IdentifiedModel:
     wheel_heldout_rmse: float = math.nan
     wheel_nominal_rmse: float = math.nan
     heldout_candidates: tuple[tuple[str, float], ...] = ()
+    tyres: IdentifiedTyres | None = None
 
     def __post_init__(self) -> None:
         _check_range("servo_time_constant", self.servo_time_constant, TIME_CONSTANT_RANGE, "s")
@@ -174,6 +181,10 @@ class IdentifiedModel:
         if not isinstance(self.status_reason, str):
             raise ParameterError(f"{_NAME}.status_reason must be a string, got {self.status_reason!r}")
         object.__setattr__(self, "heldout_candidates", _candidates(self.heldout_candidates))
+        if isinstance(self.tyres, Mapping):  # read from JSON
+            object.__setattr__(self, "tyres", IdentifiedTyres.from_json(self.tyres))
+        if self.tyres is not None and not isinstance(self.tyres, IdentifiedTyres):
+            raise ParameterError(f"{_NAME}.tyres must be IdentifiedTyres or None, got {self.tyres!r}")
         nominal = (self.servo_structure, self.servo_delay, self.servo_rate_limit, self.understeer_gradient)
         if self.status == "nominal" and nominal != ("nominal", 0.0, None, 0.0):
             raise ParameterError(

@@ -16,8 +16,9 @@ from rkmpc.learning.recipes import IdentificationLearner, recipe_of_kind
 
 _IDENTIFIED_FORMAT = "rkmpc-identified"
 #: Version 2 added the servo structure, delay, rate limit and the identification warnings; version 3
-#: the status (``identified`` or ``nominal``, with the reason) and the held-out quality.
-_IDENTIFIED_VERSION = 3
+#: the status (``identified`` or ``nominal``, with the reason) and the held-out quality; version 4 the
+#: identified tyres (``null`` when they were not identified).
+_IDENTIFIED_VERSION = 4
 #: The fields of version 1 files; the others take their defaults (a lag without delay or rate limit).
 _VERSION_1_FIELDS = (
     "servo_time_constant",
@@ -28,6 +29,8 @@ _VERSION_1_FIELDS = (
 )
 #: The fields of version 2 files; the version 3 ones take their defaults (status ``unchecked``).
 _VERSION_2_FIELDS = (*_VERSION_1_FIELDS, "servo_structure", "servo_delay", "servo_rate_limit", "warnings")
+#: Fields added by version 4 (version 3 files have every other field; their models have no tyres).
+_VERSION_4_FIELDS = ("tyres",)
 
 
 def _fields_of(version: int) -> list[str]:
@@ -35,11 +38,12 @@ def _fields_of(version: int) -> list[str]:
         return list(_VERSION_1_FIELDS)
     if version == 2:
         return list(_VERSION_2_FIELDS)
-    return [f.name for f in fields(IdentifiedModel)]
+    every = [f.name for f in fields(IdentifiedModel)]
+    return every if version == _IDENTIFIED_VERSION else [n for n in every if n not in _VERSION_4_FIELDS]
 
 
 def save_identified(model: IdentifiedModel, path: str | Path, metadata: dict[str, Any] | None = None) -> None:
-    """Write an identified model as JSON, format version 3 (temporary file, then renamed)."""
+    """Write an identified model as JSON, format version 4 (temporary file, then renamed)."""
     write_json_atomic(
         path,
         {
@@ -52,9 +56,10 @@ def save_identified(model: IdentifiedModel, path: str | Path, metadata: dict[str
 
 
 def load_identified(path: str | Path) -> IdentifiedModel:
-    """Read a model written by :func:`save_identified` (versions 1 to 3); clear errors for bad files.
+    """Read a model written by :func:`save_identified` (versions 1 to 4); clear errors for bad files.
 
-    Versions 1 and 2 predate the held-out checks: their models load with status ``unchecked``.
+    Versions 1 and 2 predate the held-out checks: their models load with status ``unchecked``;
+    versions 1 to 3 predate the tyres: their models have none.
     """
     path = Path(path)
     try:
@@ -66,7 +71,7 @@ def load_identified(path: str | Path) -> IdentifiedModel:
     if not isinstance(payload, dict) or payload.get("format") != _IDENTIFIED_FORMAT:
         raise InputFileError(path, f"not an {_IDENTIFIED_FORMAT} file", field="format")
     version = payload.get("version")
-    if version not in (1, 2, _IDENTIFIED_VERSION) or isinstance(version, bool):
+    if version not in (1, 2, 3, _IDENTIFIED_VERSION) or isinstance(version, bool):
         raise InputFileError(
             path,
             f"unknown version {version!r}; this rkmpc reads versions 1 to {_IDENTIFIED_VERSION}",
@@ -92,8 +97,16 @@ def load_model(path: str | Path, kind: str) -> IdentifiedModel | KoopmanModel:
     recipe = recipe_of_kind(kind)
     identified = isinstance(recipe.learner, IdentificationLearner)
     _refuse_other_format(Path(path), kind, identified=identified)
-    if identified:
-        return load_identified(path)
+    if isinstance(recipe.learner, IdentificationLearner):
+        loaded = load_identified(path)
+        if recipe.learner.tyres and loaded.tyres is None:
+            raise InputFileError(
+                path,
+                "holds an identified model without tyres (from `rkmpc train --kind identified`, or a file "
+                f"of version 3 or older); {recipe.controller} needs one from `rkmpc train --kind {kind}`",
+                field="tyres",
+            )
+        return loaded
     model = KoopmanModel.load(path)
     found = model.metadata_.get("kind")
     if found != kind:

@@ -2,10 +2,11 @@
 
 A recipe's learner (:mod:`rkmpc.learning.recipes`) says what kind of model it is; :func:`learn`
 trains a Koopman model (:func:`rkmpc.learning.pipeline.train_model`) or identifies the physical
-parameters (:func:`rkmpc.learning.identification.identify`), after the same checks of the data
-(the contract: car, period, wheelbase; and that the data can be learned from), and returns a
-:class:`Learned` that :func:`save_learned` writes to the model file of its kind. ``rkmpc train``,
-the comparison, the studies and the on-car workflow all learn here.
+parameters (:func:`rkmpc.learning.identification.identify`, and the tyres with
+:func:`rkmpc.learning.tyre_fit.identify_tyres` when the learner asks for them), after the same
+checks of the data (the contract: car, period, wheelbase; and that the data can be learned
+from), and returns a :class:`Learned` that :func:`save_learned` writes to the model file of its
+kind. ``rkmpc train``, the comparison, the studies and the on-car workflow all learn here.
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ from rkmpc.learning.io import save_identified
 from rkmpc.learning.koopman.model import KoopmanModel
 from rkmpc.learning.pipeline import TrainConfig, TrainReport, train_model
 from rkmpc.learning.recipes import KoopmanLearner, Recipe
+from rkmpc.learning.tyre_fit import identify_tyres
 from rkmpc.vehicle.params import VehicleParams
 
 __all__ = ["Learned", "learn", "save_learned"]
@@ -127,6 +129,8 @@ def learn(
     warned = data.contract.check(made_for, source=source, made="recorded", allow_mismatch=allow_mismatch)
     check_learnable(data, wheelbase, source)
     ident = identify(data, vehicle)
+    if recipe.learner.tyres:
+        ident = replace(ident, tyres=identify_tyres(data, vehicle, ident))
     contract = replace(data.contract, dt=data.dt, wheelbase=wheelbase, recorded=True)
     metadata = {
         "data_hash": data.content_hash(),
@@ -138,7 +142,7 @@ def learn(
         recipe=recipe,
         model=ident,
         report=None,
-        warnings=(*warned, *ident.warnings),
+        warnings=(*warned, *ident.warnings, *(ident.tyres.warnings if ident.tyres else ())),
         metadata=metadata,
     )
 

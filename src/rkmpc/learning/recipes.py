@@ -109,10 +109,22 @@ class KoopmanLearner:
 
 @dataclass(frozen=True)
 class IdentificationLearner:
-    """A few physical parameters identified by least squares (:mod:`rkmpc.learning.identification`)."""
+    """A few physical parameters identified by least squares (:mod:`rkmpc.learning.identification`).
+
+    Parameters
+    ----------
+    tyres : bool
+        Identify the tyre curves too (:mod:`rkmpc.learning.tyre_fit`), for a dynamic model.
+    """
+
+    tyres: bool = False
 
     #: Identification is quick and has no settings worth caching under.
     cacheable = False
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.tyres, bool):
+            raise ParameterError(f"IdentificationLearner.tyres must be a bool, got {self.tyres!r}")
 
 
 Learner = KoopmanLearner | IdentificationLearner
@@ -167,6 +179,13 @@ RECIPES: tuple[Recipe, ...] = (
         learner=IdentificationLearner(),
         data=DataSource.TRACK,
         description="servo time constant and understeer gradient, least squares",
+    ),
+    Recipe(
+        controller="nmpc-id",
+        kind="identified-tyres",
+        learner=IdentificationLearner(tyres=True),
+        data=DataSource.TRACK,
+        description="servo, understeer and tyre curves (stiffness, Pacejka), chosen on held-out blocks",
     ),
     Recipe(
         controller="rkmpc-paper",

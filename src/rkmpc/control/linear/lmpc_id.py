@@ -108,7 +108,7 @@ class IdentifiedLMPC(LinearMPC):
         self._a = self._wheel.a
         self._w = self._wheel.weights
         self._shift = delay_periods(model.servo_delay, dt)
-        super().__init__(reference, _with_rate_limit(vehicle, model.servo_rate_limit), config)
+        super().__init__(reference, with_rate_limit(vehicle, model.servo_rate_limit), config)
 
     def _reset_solver(self) -> None:
         super()._reset_solver()
@@ -195,7 +195,7 @@ class IdentifiedLMPC(LinearMPC):
         return xi0, Phi, Gamma
 
 
-def _with_rate_limit(vehicle: VehicleParams, rate_limit: float | None) -> VehicleParams:
+def with_rate_limit(vehicle: VehicleParams, rate_limit: float | None) -> VehicleParams:
     """``vehicle`` with its steering rate limited to ``rate_limit`` (rad/s) too, when that is tighter."""
     if rate_limit is None or rate_limit >= vehicle.steering.max_rate:
         return vehicle

@@ -6,8 +6,8 @@ Two continuous-time models, both with inputs ``u = [v_cmd, delta_cmd]``:
   ``[x, y, theta]``, in which the commanded speed and angle act at once;
 * :func:`dynamic_ode`, the nominal dynamic single-track model of the plant
   (:mod:`rkmpc.vehicle.plants.dynamic`), states ``[x, y, theta, v, beta, r, delta_w]``,
-  with Pacejka lateral forces, longitudinal load transfer, a first-order speed
-  loop and a first-order steering servo. The actuator rate and acceleration
+  with Pacejka lateral forces (or the tyre models given, :func:`tyre_force`), longitudinal
+  load transfer, a first-order speed loop and a first-order steering servo. The actuator rate and acceleration
   clips of the plant are left out (the MPC bounds the steering rate itself),
   and instead of the plant's kinematic blend the speed in every denominator is
   floored by a smooth maximum, which keeps the model smooth and well defined as ``v -> 0``.
@@ -17,13 +17,16 @@ Two continuous-time models, both with inputs ``u = [v_cmd, delta_cmd]``:
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import casadi as ca
 
+from rkmpc.core.errors import ParameterError
 from rkmpc.vehicle.params import PacejkaParams, VehicleParams
+from rkmpc.vehicle.tyres import LinearTyre, PacejkaTyre, TyreModel
 
-__all__ = ["dynamic_ode", "kinematic_ode", "pacejka", "rk4_map"]
+__all__ = ["dynamic_ode", "kinematic_ode", "pacejka", "rk4_map", "tyre_force"]
 
 
 def kinematic_ode(wheelbase: float) -> Any:
@@ -54,7 +57,31 @@ def pacejka(tyre: PacejkaParams, alpha: Any, load: Any) -> Any:
     return load * tyre.D * ca.sin(tyre.C * ca.atan(ba - tyre.E * (ba - ca.atan(ba))))
 
 
-def dynamic_ode(params: VehicleParams, min_speed: float = 1.0) -> Any:
+#: CasADi force law of each tyre model: ``law(tyre, alpha, load)`` with ``load = mu Fz``.
+_TYRE_FORCES: dict[type, Callable[[Any, Any, Any], Any]] = {
+    PacejkaTyre: lambda tyre, alpha, load: pacejka(tyre.params, alpha, load),
+    LinearTyre: lambda tyre, alpha, load: load * tyre.stiffness_per_load * alpha,
+}
+
+
+def tyre_force(tyre: TyreModel, alpha: Any, load: Any) -> Any:
+    """Lateral force (N) of ``tyre`` at slip angle ``alpha`` (rad) under ``load = mu Fz`` (N), in CasADi.
+
+    Raises
+    ------
+    ParameterError
+        For a tyre model without a CasADi force law.
+    """
+    law = _TYRE_FORCES.get(type(tyre))
+    if law is None:
+        known = ", ".join(t.__name__ for t in _TYRE_FORCES)
+        raise ParameterError(f"no CasADi force law for the tyre model {type(tyre).__name__} (known: {known})")
+    return law(tyre, alpha, load)
+
+
+def dynamic_ode(
+    params: VehicleParams, min_speed: float = 1.0, tyres: tuple[TyreModel, TyreModel] | None = None
+) -> Any:
     """Nominal dynamic single-track model ``f(x, u)`` as a CasADi SX function.
 
     Parameters
@@ -67,6 +94,9 @@ def dynamic_ode(params: VehicleParams, min_speed: float = 1.0) -> Any:
         (a smooth maximum, ``0.5 (v + v0 + sqrt((v - v0)^2 + (0.2 v0)^2))``).
         It bounds the stiffness of the model at low speed, so that RK4 with a
         few sub-steps per control period stays stable.
+    tyres : tuple of TyreModel, optional
+        Front and rear tyre models (their force laws take ``mu Fz``) instead of the Pacejka
+        coefficients of ``params``.
 
     Returns
     -------
@@ -91,8 +121,11 @@ def dynamic_ode(params: VehicleParams, min_speed: float = 1.0) -> Any:
     shift = m * params.h_cg / length * acc
     fz_f = m * params.gravity * lr / length - shift
     fz_r = m * params.gravity * lf / length + shift
-    fy_f = pacejka(params.tyre_front, alpha_f, params.mu * fz_f)
-    fy_r = pacejka(params.tyre_rear, alpha_r, params.mu * fz_r)
+    front, rear = (
+        tyres if tyres is not None else (PacejkaTyre(params.tyre_front), PacejkaTyre(params.tyre_rear))
+    )
+    fy_f = tyre_force(front, alpha_f, params.mu * fz_f)
+    fy_r = tyre_force(rear, alpha_r, params.mu * fz_r)
     heading = th + beta
     rhs = ca.vertcat(
         v * ca.cos(heading),

@@ -281,8 +281,16 @@ class DynamicNMPC(KinematicNMPC):
         self.min_speed = float(vehicle.blend_speed_high if min_speed is None else min_speed)
         if not (math.isfinite(self.min_speed) and self.min_speed > 0):
             raise ParameterError(f"DynamicNMPC.min_speed must be > 0, got {self.min_speed}")
-        self._wheel = WheelAnglePropagator(SteeringModel.nominal(vehicle), (config or NMPCConfig()).dt)
+        self._wheel = WheelAnglePropagator(self._steering(vehicle), (config or NMPCConfig()).dt)
         super().__init__(reference, vehicle, config)
+
+    def _steering(self, vehicle: VehicleParams) -> SteeringModel:
+        """The servo that runs the wheel angle from the commands sent (the car's nominal one)."""
+        return SteeringModel.nominal(vehicle)
+
+    def _wheel_measurement(self, observation: Observation) -> float:
+        """The measured wheel angle the state starts from (NaN: run it from the commands)."""
+        return observation.steer_angle
 
     def _ode(self) -> Any:
         return dynamic_ode(self.vehicle, self.min_speed)
@@ -298,7 +306,9 @@ class DynamicNMPC(KinematicNMPC):
     def _initial_state(self, observation: Observation, yaw: float) -> np.ndarray:
         length = self.vehicle.wheelbase
         previous = self._guard.previous
-        delta = self._wheel.step(None if previous is None else float(previous[1]), observation.steer_angle)
+        delta = self._wheel.step(
+            None if previous is None else float(previous[1]), self._wheel_measurement(observation)
+        )
         if math.isfinite(observation.slip_angle):
             beta = observation.slip_angle
         else:
