@@ -3,7 +3,7 @@ PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 
-.PHONY: ros f1tenth-gym car-loop demo demo-quick test test-slow test-all lint bench bench-breakdown tracks-table study-tracks study-cars study-pace study-fullsize study-data faults results clean
+.PHONY: acados ros f1tenth-gym car-loop demo demo-quick test test-slow test-all lint bench bench-breakdown tracks-table study-tracks study-cars study-pace study-fullsize study-data faults results clean
 
 # PyTorch first and pinned exactly: a looser pin pulls a multi-gigabyte CUDA build.
 $(BIN)/python:
@@ -18,6 +18,15 @@ $(VENV)/.installed: pyproject.toml | $(BIN)/python
 $(VENV)/.installed-test: pyproject.toml | $(BIN)/python
 	$(BIN)/python -m pip install --quiet -e '.[train,test]'
 	touch $@ $(VENV)/.installed
+
+# acados for `nmpc-acados` and `nmpc-acados-dynamic` (the real-time iterations, tested in CI): the `acados`
+# extra (a 13 MB wheel and Cython; about 15 s). A C compiler and make build each solver on first use (4 to
+# 15 s); the tests keep theirs in .pytest_cache/d/rkmpc/acados, the commands in ~/.cache/rkmpc/acados.
+$(VENV)/.installed-acados: pyproject.toml | $(BIN)/python
+	$(BIN)/python -m pip install --quiet -e '.[acados]'
+	touch $@
+
+acados: $(VENV)/.installed-acados
 
 # ROS 2 for `rkmpc node` and `rkmpc sim-node`: the `ros` extra, then ackermann_msgs generated from its
 # definition (ros/ackermann_msgs) and installed into the venv beside the wheels' message packages.
@@ -59,18 +68,18 @@ demo-quick: $(VENV)/.installed
 	$(BIN)/rkmpc compare --track builtin --controllers lmpc,lmpc-id,rkmpc --out runs/demo-quick --force
 
 # The fast tier (under 4 minutes on two quiet cores); `make test-slow` runs the long end-to-end tests.
-test: $(VENV)/.installed-test $(VENV)/.installed-ros $(F1TENTH_GYM_FOR_TESTS)
+test: $(VENV)/.installed-test $(VENV)/.installed-acados $(VENV)/.installed-ros $(F1TENTH_GYM_FOR_TESTS)
 	$(BIN)/ruff check src tests benchmarks
 	$(BIN)/ruff format --check src tests benchmarks
 	$(BIN)/mypy
 	$(BIN)/python -m pytest -m "not slow"
 
-test-slow: $(VENV)/.installed-test $(VENV)/.installed-ros $(F1TENTH_GYM_FOR_TESTS)
+test-slow: $(VENV)/.installed-test $(VENV)/.installed-acados $(VENV)/.installed-ros $(F1TENTH_GYM_FOR_TESTS)
 	$(BIN)/python -m pytest -m slow
 
 test-all: test test-slow
 
-bench: $(VENV)/.installed
+bench: $(VENV)/.installed $(VENV)/.installed-acados
 	$(BIN)/python benchmarks/bench_step.py --out runs/bench/step_times.json
 	$(BIN)/python benchmarks/bench_estimator.py --out runs/bench/estimator.json
 

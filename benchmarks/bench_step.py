@@ -3,7 +3,10 @@
 Run: ``make bench`` (or ``python benchmarks/bench_step.py --out FILE``). Each
 controller drives one lap of the track in closed loop with the simulated car;
 the step time is the controller's own wall-clock time per call, as logged.
-Reports median, mean, p99 and max in ms and writes JSON.
+Reports whether the lap was completed (else how much of it), the fall-backs, and the
+median, mean, p99 and max step time in ms, and writes JSON. The nonlinear MPCs' real-time
+paths are rows of their own: one SQP iteration per step (``sqp, 1 it``) and, where the
+extra ``rkmpc[acados]`` is installed (``make bench`` installs it), the acados RTI.
 """
 
 from __future__ import annotations
@@ -47,6 +50,11 @@ CASES: tuple[Case, ...] = (
     ("nmpc-dyn (ipopt)", "nmpc-dynamic", {}, None),
     ("nmpc-dyn (sqp, 1 it)", "nmpc-dynamic", {"nmpc": {"solver": "sqpmethod", "max_iterations": 1}}, None),
 )
+#: The acados real-time iterations (the optional extra ``rkmpc[acados]``; `make bench` installs it).
+ACADOS_CASES: tuple[Case, ...] = (
+    ("nmpc-acados (rti)", "nmpc-acados", {}, None),
+    ("nmpc-acados-dyn (rti)", "nmpc-acados-dynamic", {}, None),
+)
 
 
 def with_settings(scenario: Scenario, changes: dict[str, dict[str, Any]]) -> Scenario:
@@ -84,13 +92,23 @@ def main() -> None:
     scenario = load_scenario(args.track)
     cases = list(CASES)
     if importlib.util.find_spec("acados") is not None:
-        cases.append(("nmpc-acados (rti)", "nmpc-acados", {}, None))
-        cases.append(("nmpc-acados-dyn (rti)", "nmpc-acados-dynamic", {}, None))
+        cases += ACADOS_CASES
+    else:
+        print("acados is not installed (`make acados`): the nmpc-acados rows are left out")
     if not args.no_learned:
         cases += learned_cases(scenario, args.kmpc_model)
-    report: dict[str, object] = {"track": scenario.track.name, "versions": versions(), "controllers": {}}
+    # Other jobs on the machine change the times (the medians least): the load is recorded with them.
+    report: dict[str, object] = {
+        "track": scenario.track.name,
+        "versions": versions(),
+        "load_average_before": list(os.getloadavg()),
+        "controllers": {},
+    }
     print(f"track {scenario.track.name}, {scenario.reference.path.length:.1f} m")
-    print(f"{'controller':20s} {'steps':>6s} {'median':>8s} {'mean':>8s} {'p99':>8s} {'max':>8s}  (ms)")
+    print(
+        f"{'controller':22s} {'lap':>4s} {'fallbacks':>9s} {'steps':>6s} "
+        f"{'median':>8s} {'mean':>8s} {'p99':>8s} {'max':>8s}  (ms)"
+    )
     for label, name, changes, model in cases:
         runs_in = with_settings(scenario, changes)
         result, metrics = run_controller(runs_in, RunSpec(controller=name), model=model)
@@ -99,16 +117,23 @@ def main() -> None:
         stats = {
             "steps": int(ms.size),
             "completed": metrics["completed"],
+            "progress": float(metrics["progress"]),
+            "fallbacks": int(metrics["fallback_count"]),
+            "lateral_error_mean_m": float(metrics["lateral_error_mean_m"]),
             "median_ms": float(np.median(ms)),
             "mean_ms": float(ms.mean()),
             "p99_ms": float(np.percentile(ms, 99)),
             "max_ms": float(ms.max()),
         }
         report["controllers"][label] = stats  # type: ignore[index]
+        lap = "yes" if stats["completed"] else f"{100 * stats['progress']:.0f}%"
         print(
-            f"{label:20s} {stats['steps']:6d} {stats['median_ms']:8.3f} {stats['mean_ms']:8.3f} "
-            f"{stats['p99_ms']:8.3f} {stats['max_ms']:8.3f}"
+            f"{label:22s} {lap:>4s} {stats['fallbacks']:9d} {stats['steps']:6d} {stats['median_ms']:8.3f} "
+            f"{stats['mean_ms']:8.3f} {stats['p99_ms']:8.3f} {stats['max_ms']:8.3f}"
         )
+    report["load_average_after"] = list(os.getloadavg())
+    before, after = report["load_average_before"], report["load_average_after"]
+    print(f"load average (1, 5, 15 min): before {before}, after {after}")
     write_json_atomic(args.out, report)
     print(f"wrote {args.out}")
 

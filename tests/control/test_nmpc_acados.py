@@ -1,31 +1,54 @@
+"""The acados NMPCs (optional extra ``rkmpc[acados]``): laps, the build cache, fall-backs.
+
+`make test` installs the extra, so these run in CI (the laps in the slow tier); without it they
+skip. The generated solvers are kept between runs in pytest's cache folder
+(``.pytest_cache/d/rkmpc/acados``): a cold build compiles for 4 to 15 s per problem, a cached one
+loads in about 20 ms.
+"""
+
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
 from rkmpc.analysis.metrics import lap_metrics
 from rkmpc.control import make_controller
-from rkmpc.control.nonlinear.acados import acados_cache_dir
+from rkmpc.control.nonlinear.acados import AcadosKinematicNMPC, acados_cache_dir
 from rkmpc.control.nonlinear.nmpc import NMPCConfig
+from rkmpc.control.settings import ControllerSettings
 from rkmpc.core.errors import ParameterError
 from rkmpc.core.observation import Observation
 from rkmpc.sim.closed_loop import simulate
 from rkmpc.vehicle.registry import make_plant
 
-pytest.importorskip("acados", reason="acados is the optional extra rkmpc[acados]")
-pytest.importorskip("Cython", reason="the acados NMPCs build a Cython module")
+pytest.importorskip("acados", reason="acados is the optional extra rkmpc[acados] (`make test` installs it)")
+pytest.importorskip("Cython", reason="the acados NMPCs build a Cython module (the extra rkmpc[acados])")
 
-# The generated solvers are keyed by their content, so the tests use the user's acados cache
-# (read here, before the autouse fixture points RKMPC_CACHE_DIR to a temporary folder): only
-# the first run on a machine pays for code generation and compilation (a few seconds each).
-CACHE = acados_cache_dir()
 ACADOS = ("nmpc-acados", "nmpc-acados-dynamic")
 #: The CasADi NMPC that solves the same NLP.
 CASADI = {"nmpc-acados": "nmpc", "nmpc-acados-dynamic": "nmpc-dynamic"}
+#: The CasADi NMPC's real-time path: one SQP iteration per step, like the RTI.
+ONE_SQP = NMPCConfig(solver="sqpmethod", max_iterations=1)
 
 
-def _make(name, scenario, **options):
-    return make_controller(name, scenario.reference, scenario.vehicle, cache_dir=CACHE, **options)
+@pytest.fixture(scope="session")
+def solver_cache(pytestconfig, tmp_path_factory):
+    """A cache root kept between test runs (pytest's cache), a temporary one without it."""
+    cache = getattr(pytestconfig, "cache", None)
+    return cache.mkdir("rkmpc") if cache is not None else tmp_path_factory.mktemp("rkmpc")
+
+
+@pytest.fixture(autouse=True)
+def _kept_solvers(solver_cache, monkeypatch):
+    """The acados solvers of these tests come from (and go to) :func:`solver_cache`."""
+    monkeypatch.setenv("RKMPC_CACHE_DIR", str(solver_cache))
+
+
+def _make(name, scenario, config=None):
+    """The controller through the registry, from a car's settings (as every command builds it)."""
+    settings = ControllerSettings(nmpc=config if config is not None else NMPCConfig())
+    return make_controller(name, scenario.reference, scenario.vehicle, settings=settings)
 
 
 def _on_path_observation(scenario, s=5.0, offset=0.0):
@@ -40,15 +63,15 @@ def _on_path_observation(scenario, s=5.0, offset=0.0):
     )
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ACADOS)
 def test_acados_nmpc_laps_builtin_like_casadi(builtin_scenario, name):
     sc = builtin_scenario
-    # The CasADi NMPC on its fast path (one SQP iteration per step, like the RTI).
-    casadi = make_controller(
-        CASADI[name], sc.reference, sc.vehicle, config=NMPCConfig(solver="sqpmethod", max_iterations=1)
+    reference = lap_metrics(
+        simulate(make_plant("f1tenth"), _make(CASADI[name], sc, ONE_SQP), sc.track, sc.reference)
     )
-    reference = lap_metrics(simulate(make_plant("f1tenth"), casadi, sc.track, sc.reference))
     ctrl = _make(name, sc)
+    assert ctrl.build_dir.parent == acados_cache_dir()
     result = simulate(make_plant("f1tenth"), ctrl, sc.track, sc.reference)
     metrics = lap_metrics(result)
     assert result.outcome == "completed", metrics
@@ -72,9 +95,20 @@ def test_acados_build_is_cached_outside_the_working_directory(builtin_scenario, 
     assert second.build_dir == first.build_dir
     assert (second.build_dir / "built.json").exists()
     assert list(tmp_path.iterdir()) == []
-    # Another problem is another build.
-    other = _make(name, sc, config=NMPCConfig(horizon=12))
+
+
+@pytest.mark.slow
+def test_acados_another_problem_is_another_build(builtin_scenario):
+    sc = builtin_scenario
+    first = _make("nmpc-acados", sc)
+    other = _make("nmpc-acados", sc, replace(NMPCConfig(), horizon=12))
+    assert other.config.horizon == 12
     assert other.build_dir != first.build_dir
+    assert other.last_plan is None
+    other.reset()
+    other.step(_on_path_observation(sc))
+    assert other.info.status == "ok"
+    assert other.last_plan is not None and other.last_plan.shape == (12, 2)
 
 
 def test_acados_nmpc_plan_matches_reference_on_path(builtin_scenario):
@@ -167,7 +201,7 @@ def test_acados_infeasible_problem_falls_back(builtin_scenario, name):
 
 def test_acados_rejects_bad_options(builtin_scenario):
     sc = builtin_scenario
-    with pytest.raises(ParameterError):
-        _make("nmpc-acados", sc, qp_solver="OSQP")
-    with pytest.raises(ParameterError):
-        _make("nmpc-acados", sc, config=NMPCConfig(hessian="limited-memory"))
+    with pytest.raises(ParameterError, match="qp_solver"):
+        AcadosKinematicNMPC(sc.reference, sc.vehicle, qp_solver="OSQP")
+    with pytest.raises(ParameterError, match="limited-memory"):
+        _make("nmpc-acados", sc, replace(NMPCConfig(), hessian="limited-memory"))
