@@ -215,7 +215,12 @@ def test_compare_learns_and_writes_the_results_schema(tmp_path):
     assert all(f"| {n} |" in table for n in results["controllers"])
     for plot in ("plot.png", "solve_times.png"):
         assert (out / plot).stat().st_size > 10_000
-    assert len(list(cache.glob("*.rkm"))) == 2  # the KMPC and the residual model
+    # The KMPC (learned from random excitation on the true state, shared by both runs) and one
+    # residual model per sensor set: compare also drives the car through the real car's sensors.
+    real = json.loads((out / "sensors-f1tenth-real" / "results.json").read_text())
+    assert real["training"]["kmpc"]["cache_key"] == training["kmpc"]["cache_key"]
+    assert real["training"]["rkmpc"]["cache_key"] != training["rkmpc"]["cache_key"]
+    assert len(list(cache.glob("*.rkm"))) == 3
 
 
 @pytest.mark.slow

@@ -19,7 +19,6 @@ from rkmpc.learning.identification import IdentifiedModel, identify, predicted_y
 from rkmpc.sim.collect import collect
 from rkmpc.sim.scenario import Scenario, load_scenario
 from rkmpc.vehicle.plants.base import Plant
-from rkmpc.vehicle.zoo import CarSpec
 
 pytestmark = pytest.mark.slow
 
@@ -120,27 +119,24 @@ def test_the_nominal_car_is_nominal_or_within_tolerance_of_it(identified):
 
 
 @dataclass(frozen=True)
-class _Delayed(CarSpec):
-    """A zoo car whose commands reach its actuators ``input_delay`` seconds late."""
+class _Delayed(Scenario):
+    """A scenario whose zoo car gets its commands ``input_delay`` seconds late."""
 
     input_delay: float = 0.15
 
-    def make_plant(self, seed: int = 0, **options) -> Plant:
-        return super().make_plant(seed, input_delay=self.input_delay)
+    def make_plant(self, seed: int = 0) -> Plant:
+        zoo = self.zoo_car
+        assert zoo is not None
+        return self.car.sensors.wrap(zoo.make_plant(seed, input_delay=self.input_delay), seed)
 
 
 def test_a_steering_delay_of_150_ms_is_recovered_within_a_control_period(identified):
     # At 2 m/s the LMPC, unaware of the delay, still completes its two laps (at 3.5 m/s it leaves).
     limits = replace(load_preset("f1tenth").limits, max_speed=2.0)
     scenario = load_scenario("builtin", car="home", limits=limits)
-    assert scenario.car is not None
-    car = _Delayed(
-        **{
-            f: getattr(scenario.car, f)
-            for f in ("name", "summary", "params", "steering", "speed_loop", "tyre_front", "tyre_rear")
-        }
-    )
-    data = collect(replace(scenario, car=car), controller="lmpc", laps=2, seed=0)
+    assert scenario.zoo_car is not None
+    delayed = _Delayed(track=scenario.track, car=scenario.car, reference=scenario.reference, dt=scenario.dt)
+    data = collect(delayed, controller="lmpc", laps=2, seed=0)
     model = quiet_identify(unmeasured(data), scenario)
     assert model.status == "identified" and model.servo_structure.startswith("delay")
     assert model.servo_delay == pytest.approx(0.15, abs=0.05)
