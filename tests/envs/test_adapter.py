@@ -14,6 +14,7 @@ another machine's floating point and would still catch a command held one step t
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -22,6 +23,7 @@ pytest.importorskip("gymnasium")
 
 from rkmpc.control import make_controller
 from rkmpc.control.base import Controller
+from rkmpc.control.estimated import EstimatedController
 from rkmpc.core.errors import ParameterError
 from rkmpc.core.observation import Command, Observation
 from rkmpc.envs.adapter import (
@@ -173,6 +175,31 @@ def test_the_policy_refuses_periods_it_cannot_hold():
     with pytest.raises(ParameterError, match="one agent's action; the observation has 2"):
         policy(_obs(2))
     assert policy.command(_obs(2)).speed == 1.0  # the ego of two agents, by command
+
+
+def test_a_state_estimator_must_step_at_the_policys_period(builtin_scenario):
+    """The estimator propagates the wheel angle one control period per step: another period is refused."""
+    car = builtin_scenario.car.with_sensors("no-steer")
+    controller = build_controller("lmpc", replace(builtin_scenario, car=car))
+    assert isinstance(controller, EstimatedController)
+    assert ControllerPolicy(controller, 0.01).control_period == 0.05
+    with pytest.raises(ParameterError, match=r"propagates the wheel angle every 0.05 s, the policy .* 0.1 s"):
+        ControllerPolicy(controller, 0.01, control_period=0.1)
+
+
+def test_run_episode_hands_every_steps_info_to_on_step(builtin_scenario):
+    env = F1TenthTrackEnv(builtin_scenario)
+    seen = []
+    episode = run_episode(
+        env,
+        ControllerPolicy(_controller(builtin_scenario), env.timestep),
+        seed=0,
+        max_steps=12,
+        on_step=seen.append,
+    )
+    assert len(seen) == episode.steps == 12
+    assert [info["time"] for info in seen] == pytest.approx(0.01 * np.arange(1, 13))
+    assert seen[-1]["lateral_error"] == episode.info["lateral_error"]
 
 
 def test_f1tenth_observations_convert_to_the_projects():

@@ -69,6 +69,7 @@ def cmd_train(args: argparse.Namespace) -> int:
             on_epoch=on_epoch if not args.kind.startswith("identified") else None,
             allow_mismatch=args.allow_mismatch,
             source=str(args.data),
+            estimator=car.estimator,
         )
     print("\n".join(lines))
     return 0

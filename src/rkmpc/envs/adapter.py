@@ -23,8 +23,13 @@ and return a :class:`~rkmpc.core.observation.Command` once per control period (0
   ``"guard"``) is counted in :attr:`Episode.status_counts`, and :func:`run_episode` logs a warning
   when more than :data:`DEGRADED_SHARE` of the steps were fall-backs.
 
-Any :class:`~rkmpc.control.base.Controller` drives, a wrapped one too (a state estimator that fills
-the wheel angle from the commands before the controller sees the observation).
+Any :class:`~rkmpc.control.base.Controller` drives, a wrapped one too: where the environment does
+not measure a field (the F1TENTH gym's default observation has no wheel angle and no lateral
+velocity), build the controller for a car that declares those sensors
+(:func:`rkmpc.sim.build.build_controller` for a scenario whose car has ``with_sensors("no-steer")``):
+it is then an :class:`~rkmpc.control.estimated.EstimatedController`, whose state estimator fills the
+wheel angle from the commands and estimates the slip before the controller sees the observation.
+Its estimator must step at the policy's control period (checked).
 
 :func:`run_episode` drives one episode with a policy and keeps, per control period, the
 observation the controller saw and the command it sent (a :class:`~rkmpc.sim.log.StepLog`), from
@@ -38,12 +43,13 @@ from __future__ import annotations
 import logging
 import math
 from collections import Counter
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any, Protocol
 
 import numpy as np
 
 from rkmpc.control.base import STATUS_CODES, STATUSES, Controller
+from rkmpc.control.estimated import EstimatedController
 from rkmpc.core.errors import ParameterError
 from rkmpc.core.observation import OBSERVATION_FIELDS, Command, Observation
 from rkmpc.core.validation import is_integer, is_positive_number
@@ -122,6 +128,19 @@ def _check_measured(controller: Controller, layout: ObservationLayout) -> None:
         )
 
 
+def _check_estimator_period(controller: Controller, period: float) -> None:
+    """Refuse a state estimator whose wheel-angle model steps with another period than the policy's."""
+    if not isinstance(controller, EstimatedController):
+        return
+    own = controller.estimator.config.control_period
+    if not math.isclose(own, period, rel_tol=_RATIO_TOL):
+        raise ParameterError(
+            f"ControllerPolicy: the state estimator of {controller.name!r} propagates the wheel angle "
+            f"every {own} s, the policy steps the controller every {period} s; build the controller "
+            "for a scenario with the policy's period (rkmpc.sim.build.build_controller)"
+        )
+
+
 def action_from_command(command: Command) -> np.ndarray:
     """The F1TENTH action of one agent for ``command``: ``[[steer (rad), speed (m/s)]]``, shape (1, 2)."""
     return np.array([[command.steer, command.speed]], dtype=np.float64)
@@ -183,6 +202,7 @@ class ControllerPolicy:
             )
         if not is_integer(agent, 0):
             raise ParameterError(f"ControllerPolicy: agent must be an integer >= 0, got {agent!r}")
+        _check_estimator_period(controller, float(period))
         self.controller = controller
         self.timestep = float(timestep)
         self.control_period = float(period)
@@ -278,6 +298,7 @@ def run_episode(
     seed: int | None = None,
     options: dict[str, Any] | None = None,
     max_steps: int | None = None,
+    on_step: Callable[[Mapping[str, Any]], None] | None = None,
 ) -> Episode:
     """Reset ``env`` and ``policy`` and drive until the episode ends or ``max_steps`` steps.
 
@@ -293,6 +314,9 @@ def run_episode(
         Passed to ``env.reset`` (for instance ``{"poses": ...}``).
     max_steps : int or None
         Largest number of environment steps (>= 1); None: until the environment ends the episode.
+    on_step : callable, optional
+        Called with the ``info`` of every environment step (for instance to record the true
+        lateral error of :class:`rkmpc.envs.f1tenth_gym.TrackProgress` at every 0.01 s step).
 
     Returns
     -------
@@ -310,6 +334,8 @@ def run_episode(
         observation, reward, terminated, truncated, info = env.step(policy(observation))
         total += float(reward)
         steps += 1
+        if on_step is not None:
+            on_step(info)
     episode = Episode(
         log=policy.log(observation),
         control_period=policy.control_period,

@@ -12,6 +12,11 @@ ones; it also takes a track object. Here:
   asked for, wrapped in :class:`TrackProgress`, which adds rkmpc's ``info`` (``outcome``,
   ``completed_lap_times``, ``lateral_error`` against the reference path, ...) and ends the
   episode after ``max_laps`` laps;
+* :func:`gym_car` is the car whose controllers drive there: a car (the ``f1tenth`` preset by
+  default) that declares the sensors the gym's observation has (:func:`gym_sensors`) and the zoo's
+  ``gym`` car as its plant (the data sets and models made in the gym record it);
+  :func:`rkmpc.sim.build.build_controller` then puts the state estimator in front of its controllers
+  where the gym does not measure a field (its default observation: no wheel angle, no side-slip);
 * :func:`gym_policy` builds the :class:`~rkmpc.envs.adapter.ControllerPolicy` for it: the
   controller stepped every control period (0.05 s: five gym steps, its command held in between)
   and the observation read with :func:`gym_layout`.
@@ -32,6 +37,7 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Mapping
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -39,6 +45,8 @@ import gymnasium as gym
 import numpy as np
 from PIL import Image
 
+from rkmpc.config.car import CarConfig
+from rkmpc.config.loader import load_preset
 from rkmpc.control.base import Controller
 from rkmpc.core.errors import InputFileError, ParameterError
 from rkmpc.core.validation import is_integer, is_positive_number
@@ -46,6 +54,7 @@ from rkmpc.envs.adapter import ControllerPolicy
 from rkmpc.envs.gym_map import gym_map, gym_map_name
 from rkmpc.envs.layouts import F1TENTH_GYM, GYM_FEATURES, ObservationLayout
 from rkmpc.envs.progress import progress_info
+from rkmpc.estimation.config import EstimatorConfig
 from rkmpc.sim.laps import LapCounter
 from rkmpc.sim.scenario import Scenario
 from rkmpc.track.path import Path as TrackPath
@@ -53,12 +62,15 @@ from rkmpc.track.track import Track
 
 __all__ = [
     "GYM_ENV_ID",
+    "GYM_ESTIMATOR",
     "OBSERVATION_TYPES",
     "TrackProgress",
+    "gym_car",
     "gym_layout",
     "gym_map",
     "gym_map_name",
     "gym_policy",
+    "gym_sensors",
     "load_gym_track",
     "make_gym_env",
     "start_pose",
@@ -76,6 +88,16 @@ OBSERVATION_TYPES: dict[str, ObservationLayout] = {
 #: Per dynamic model of the gym, the fields its observations fill with a placeholder 0.
 PLACEHOLDER_FIELDS: dict[str, tuple[str, ...]] = {"st": (), "ks": ("yaw_rate", "slip_angle")}
 _OUTCOMES = ("collision", "max_laps", "gym_done")
+#: The state estimator's tuning for the gym's measurements, which are its model's true states (in
+#: float32): the pose and the speed are exact, so a few millimetres, milliradians and centimetres
+#: per second of measurement noise (what keeps the filter from following them blindly where its
+#: model differs), and the filter reads the side-slip from the course the poses draw (with the
+#: defaults, a real localiser's 5 cm, it rests on its tyre model and reads less slip than the gym's).
+#: The yaw rate is exact too, but the gym's wheel limit-cycles around the command (bang-bang at
+#: 3.2 rad/s every 0.01 s step), so the yaw rate sampled every 0.05 s differs from the rate of the
+#: poses over the period around it by 0.020 rad/s (standard deviation, LMPC laps of the built-in
+#: track, Monza and Silverstone): its noise.
+GYM_ESTIMATOR = EstimatorConfig(position_std=0.003, yaw_std=0.0015, speed_std=0.01, yaw_rate_std=0.02)
 
 
 def _gym_track_class() -> Any:
@@ -145,8 +167,8 @@ class TrackProgress(gym.Wrapper):
     ``lateral_error``, ``heading_error``, ``track_margin`` (against ``track``'s boundaries),
     ``completed_lap_times``, ``outcome`` (``"running"``; ``"collision"`` when the gym stopped the
     ego against a wall; ``"max_laps"`` when this wrapper truncated; ``"gym_done"`` when the gym
-    ended otherwise, after its own two laps) and ``failure`` (None). Observations, rewards and
-    actions are the gym's.
+    ended otherwise, after its own two laps, only without ``max_laps``) and ``failure`` (None).
+    Observations, rewards and actions are the gym's.
 
     Parameters
     ----------
@@ -157,7 +179,8 @@ class TrackProgress(gym.Wrapper):
     path : Path
         The reference path (lateral error, laps).
     max_laps : int or None
-        Laps after which the episode is truncated (>= 1); None: the gym decides.
+        Laps after which the episode is truncated (>= 1), the gym's own end after two laps
+        ignored (it comes some 0.3 m short of the second); None: the gym decides.
     """
 
     def __init__(
@@ -208,10 +231,13 @@ class TrackProgress(gym.Wrapper):
         proj, _ = self.progress.update(x, y, time, float(gym_env.timestep))
         laps_done = self.max_laps is not None and len(self.progress.crossings) >= self.max_laps
         collided = bool(gym_env.collisions[gym_env.ego_idx])
-        ended = dict(zip(_OUTCOMES, (collided, laps_done, bool(terminated)), strict=True))
+        # With max_laps this wrapper counts the laps: the gym's own end after two laps (which it
+        # signals some 0.3 m before its start point) is ignored; a collision always ends the episode.
+        gym_done = bool(terminated) and not collided and self.max_laps is None
+        ended = dict(zip(_OUTCOMES, (collided, laps_done, gym_done), strict=True))
         outcome = next((name for name, happened in ended.items() if happened), "running")
         extra = progress_info(time, yaw, self.progress, proj, self._margin(x, y), outcome, None)
-        return observation, reward, bool(terminated), bool(truncated) or laps_done, {**info, **extra}
+        return observation, reward, collided or gym_done, bool(truncated) or laps_done, {**info, **extra}
 
 
 def make_gym_env(
@@ -241,7 +267,8 @@ def make_gym_env(
         The gym's physics step (s, > 0); its RK4 integrates one step per call. The adapter holds
         each command for ``control_period / timestep`` steps (five at the default 0.01 s).
     max_laps : int or None
-        Laps after which :class:`TrackProgress` truncates the episode; None: the gym's two laps.
+        Laps after which :class:`TrackProgress` truncates the episode, whatever the gym's own lap
+        count says; None: the gym ends it, after its two laps.
     params : mapping, optional
         The gym car's parameters to change (its ``params`` keys: ``mu``, ``C_Sf``, ``lf``, ...).
     seed : int
@@ -294,6 +321,49 @@ def gym_layout(env: gym.Env[Any, Any]) -> ObservationLayout:
             f"gym_layout: the gym's observation type {kind!r} is not one of {sorted(OBSERVATION_TYPES)}"
         )
     return OBSERVATION_TYPES[kind].without(*PLACEHOLDER_FIELDS[config["model"]])
+
+
+def gym_sensors(observation: str = "original", *, model: str = "st", unmeasured: tuple[str, ...] = ()) -> str:
+    """The sensor profile (:data:`rkmpc.vehicle.sensors.SENSOR_PROFILES`) of what the gym observes.
+
+    ``"ideal"`` when the observation type ``observation`` of the gym's dynamic ``model`` gives every
+    field (``"dynamic_state"`` of ``"st"``, none of them declared ``unmeasured``), else
+    ``"no-steer"``: the true pose and speed, and a field it does not give is NaN, which the state
+    estimator of a controller built for that profile fills.
+    """
+    if observation not in OBSERVATION_TYPES:
+        raise ParameterError(
+            f"gym_sensors: observation must be one of {sorted(OBSERVATION_TYPES)}, got {observation!r}"
+        )
+    if model not in PLACEHOLDER_FIELDS:
+        raise ParameterError(f"gym_sensors: model must be one of {sorted(PLACEHOLDER_FIELDS)}, got {model!r}")
+    layout = OBSERVATION_TYPES[observation].without(*PLACEHOLDER_FIELDS[model], *unmeasured)
+    return "no-steer" if layout.never_measured else "ideal"
+
+
+def gym_car(
+    car: CarConfig | None = None,
+    *,
+    observation: str = "original",
+    model: str = "st",
+    unmeasured: tuple[str, ...] = (),
+    estimator: EstimatorConfig | None = GYM_ESTIMATOR,
+) -> CarConfig:
+    """The car whose controllers drive in the gym: ``car`` with the gym's sensors and the gym's plant.
+
+    ``car`` (the ``f1tenth`` preset when None: its nominal model and controller settings) gets the
+    sensor profile :func:`gym_sensors` of the observation, so that
+    :func:`rkmpc.sim.build.build_controller` wraps its controllers in the state estimator where the
+    gym does not measure a field; that estimator's tuning ``estimator`` (:data:`GYM_ESTIMATOR` for
+    the gym's exact measurements; None keeps ``car``'s), which smooths the data learned from too
+    (:func:`rkmpc.experiments.training.estimated_for`); and the zoo car ``"gym"`` (the gym's vehicle
+    parameters) as its plant, which the contract of a data set recorded in the gym and of a model
+    trained on it names. Put it on a track with :meth:`rkmpc.sim.scenario.Scenario.from_car`.
+    """
+    base = load_preset("f1tenth") if car is None else car
+    sensors = gym_sensors(observation, model=model, unmeasured=unmeasured)
+    tuned = base if estimator is None else replace(base, estimator=estimator)
+    return tuned.with_sensors(sensors).with_zoo_car("gym")
 
 
 def gym_policy(

@@ -144,6 +144,7 @@ def train_to_file(
     on_epoch: Callable[[int, float], None] | None = None,
     allow_mismatch: bool = False,
     source: str = "the data set",
+    estimator: EstimatorConfig | None = None,
 ) -> list[str]:
     """Identify or train the model of ``kind`` on ``data`` and write it to ``out``.
 
@@ -174,6 +175,10 @@ def train_to_file(
         Train on data of another car or period anyway (the warnings are kept in the model file).
     source : str
         Name of the data set in messages (its file).
+    estimator : EstimatorConfig or None
+        The tuning of the state estimator whose smoother fills the fields the data never measured
+        (:func:`estimated_for`); the car's (``CarConfig.estimator``), so that the model learns from
+        the states its controller's estimator will give it. None: the defaults.
 
     Returns
     -------
@@ -194,7 +199,7 @@ def train_to_file(
     recipe = recipe_of_kind(kind)
     learned = learn(
         recipe,
-        estimated_for(recipe, data, vehicle),
+        estimated_for(recipe, data, vehicle, estimator),
         made_for=made_for,
         vehicle=vehicle,
         seed=seed,

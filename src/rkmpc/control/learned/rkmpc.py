@@ -184,6 +184,11 @@ class _ResidualBase(Controller):
         # As the LMPC: never faster than the reference speed profile.
         np.minimum(ub[0::2], pred.u_ref[:, 0] - pred.plan[:, 0], out=ub[0::2])
         np.minimum(lb, ub, out=lb)
+        if self.config.steer_rate_weight > 0.0:
+            # The first correction's change from the one applied last: w (d_0 - d_last)^2 adds
+            # -2 w d_last to its linear term (before the QP is given it).
+            f = f.copy()
+            f[1] -= 2.0 * self.config.steer_rate_weight * self.last_correction[1]
         lateral = self.lateral
         if not self._qp.is_setup:
             self._qp.setup(H, f, lb, ub, lateral.rows, lateral.lower, lateral.upper)
@@ -194,9 +199,6 @@ class _ResidualBase(Controller):
             )
         else:
             self._qp.update(H=None if H is self._qp_hessian else H, f=f, lb=lb, ub=ub)
-        if self.config.steer_rate_weight > 0.0:
-            f = f.copy()
-            f[1] -= 2.0 * self.config.steer_rate_weight * self.last_correction[1]
         self._qp_hessian = H
         result = self._qp.solve()
         if not result.solved or not _all_finite(result.x):
