@@ -101,13 +101,13 @@ def test_no_more_workers_than_jobs(monkeypatch):
     import rkmpc.experiments.parallel as parallel
 
     seen = []
-    real = parallel._backend_config
+    real = parallel.backend_config
 
     def spy(backend, n_jobs, address):
         seen.append(n_jobs)
         return real(backend, n_jobs, address)
 
-    monkeypatch.setattr(parallel, "_backend_config", spy)
+    monkeypatch.setattr(parallel, "backend_config", spy)
     out = run_jobs([JOBS[1], JOBS[-1]], n_jobs=8, backend="loky")
     assert seen == [2]
     assert [o.value for o in out] == [1, "1"]

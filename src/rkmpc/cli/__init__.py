@@ -121,7 +121,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         with warnings.catch_warnings(), catch:
             warnings.simplefilter("ignore", IdentificationWarning)
             return commands[args.command](args)
-    except (RkmpcError, ValueError, OSError) as exc:
+    except (RkmpcError, ValueError, OSError, ImportError) as exc:
+        # An ImportError is an optional package not installed (a backend, torch, rosbags): its
+        # message says which and how to install it.
         print(f"rkmpc: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

@@ -249,24 +249,32 @@ def run_study_command(args: argparse.Namespace, study: Study[Any], stem: str) ->
     from rich.console import Console
 
     from rkmpc.analysis.plots import save_figure
-    from rkmpc.core.io import check_output_folder, output_folder, write_json_atomic, write_text_atomic
+    from rkmpc.core.io import (
+        check_output_folder,
+        claim_output,
+        output_folder,
+        write_json_atomic,
+        write_text_atomic,
+    )
     from rkmpc.experiments.parallel import limit_threads
     from rkmpc.experiments.study import Parallel, run_study
 
     markers = (f"{stem}.json",)
-    # The folder is checked before hours of runs, and made when they are done.
-    check_output_folder(args.out, force=args.force, markers=markers)
-    parallel = Parallel(n_jobs=args.jobs, backend=args.backend, address=args.address)
-    limit_threads()  # this process trains too (the shared models, or jobs when --jobs 1)
-    console = Console(stderr=True)
-    journal = getattr(args, "journal", None)
-    result = run_study(
-        study, parallel=parallel, journal=journal, progress=study_progress(console), say=console.print
-    )
-    text = result.to_markdown()
-    with output_folder(args.out, force=args.force, markers=markers) as out:
-        write_json_atomic(out / f"{stem}.json", result.to_json())
-        write_text_atomic(out / f"{stem}.md", text)
+    # The folder is claimed and checked before hours of runs (a second study into it is refused at
+    # once), and made when they are done.
+    with claim_output(args.out):
+        check_output_folder(args.out, force=args.force, markers=markers)
+        parallel = Parallel(n_jobs=args.jobs, backend=args.backend, address=args.address)
+        limit_threads()  # this process trains too (the shared models, or jobs when --jobs 1)
+        console = Console(stderr=True)
+        journal = getattr(args, "journal", None)
+        result = run_study(
+            study, parallel=parallel, journal=journal, progress=study_progress(console), say=console.print
+        )
+        text = result.to_markdown()
+        with output_folder(args.out, force=args.force, markers=markers) as out:
+            write_json_atomic(out / f"{stem}.json", result.to_json())
+            write_text_atomic(out / f"{stem}.md", text)
     print(text)
     # The figure last, into the finished folder: a figure that fails must not lose hours of runs.
     figure = result.figure()

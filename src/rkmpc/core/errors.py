@@ -76,6 +76,10 @@ def raise_if_interrupted(exc: BaseException) -> None:
         current = current.__cause__ or current.__context__
 
 
+class MissingPackageError(RkmpcError, ImportError):
+    """An optional package a feature needs is not installed (the message says how to install it)."""
+
+
 class ParameterError(RkmpcError, ValueError):
     """A parameter set failed validation (names the parameter and the problem)."""
 

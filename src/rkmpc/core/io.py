@@ -9,6 +9,8 @@ half-written file and a crash (even ``kill -9``) leaves the old file intact.
 from __future__ import annotations
 
 import contextlib
+import errno
+import fcntl
 import json
 import math
 import os
@@ -30,6 +32,7 @@ __all__ = [
     "atomic_write",
     "check_output_file",
     "check_output_folder",
+    "claim_output",
     "output_folder",
     "read_npz",
     "write_json_atomic",
@@ -80,8 +83,11 @@ def atomic_write(path: str | Path, mode: str = "w", *, suffix: str = ".tmp") -> 
 def check_output_file(path: str | Path) -> None:
     """Raise :class:`OutputError` when a file cannot be written at ``path`` (checked before any work).
 
-    ``path`` must not be a folder, and its nearest existing ancestor must be a writable folder. An
-    existing file is replaced (atomically) when the work is done.
+    ``path`` must not be a folder, and its nearest existing ancestor must be a folder in which a
+    file can be written: a small temporary file is written there, flushed to the disk and removed,
+    so a full disk, a read-only file system or a folder without permission is found before hours
+    of work rather than when the result is saved. An existing file is replaced (atomically) when
+    the work is done.
     """
     path = Path(path)
     if path.is_dir():
@@ -93,6 +99,18 @@ def check_output_file(path: str | Path) -> None:
         raise OutputError(f"cannot write {path}: {parent} is a file, not a folder")
     if not os.access(parent, os.W_OK | os.X_OK):
         raise OutputError(f"cannot write {path}: no permission to write in {parent}")
+    try:
+        with tempfile.NamedTemporaryFile(dir=parent, prefix=f".{path.name}.", suffix=".check") as probe:
+            probe.write(bytes(_PROBE_BYTES))
+            probe.flush()
+            os.fsync(probe.fileno())
+    except OSError as exc:
+        reason = exc.strerror or str(exc)
+        raise OutputError(f"cannot write {path}: {reason} (a test file in {parent} failed)") from None
+
+
+#: Bytes of the test file :func:`check_output_file` writes: a few blocks, so a full disk refuses it.
+_PROBE_BYTES = 64 * 1024
 
 
 def check_output_folder(out: str | Path, *, force: bool, markers: tuple[str, ...]) -> bool:
@@ -121,8 +139,9 @@ def check_output_folder(out: str | Path, *, force: bool, markers: tuple[str, ...
 def output_folder(out: str | Path, *, force: bool, markers: tuple[str, ...]) -> Iterator[Path]:
     """A new folder to write a run's outputs in; it becomes ``out`` only when the run succeeds.
 
-    ``out`` is first checked (:func:`check_output_folder`). The outputs are written into a hidden
-    temporary sibling folder, which is renamed to ``out`` when the block ends without error
+    ``out`` is first claimed (:func:`claim_output`: a second rkmpc writing it at the same time is
+    refused at once) and checked (:func:`check_output_folder`). The outputs are written into a
+    hidden temporary sibling folder, which is renamed to ``out`` when the block ends without error
     (replacing an earlier output as a whole with ``force``). When the block raises (an error,
     Ctrl-C), the temporary folder is removed, with any parent folder made for it: a failed run
     leaves ``out`` as it was and nothing half-written.
@@ -142,30 +161,102 @@ def output_folder(out: str | Path, *, force: bool, markers: tuple[str, ...]) -> 
         The folder to write in (not ``out``: name files relative to it).
     """
     out = Path(out)
-    replace = check_output_folder(out, force=force, markers=markers)
+    if out.exists() and not out.is_dir():
+        raise OutputError(f"{out} is a file, not a folder")
     made = [p for p in (out.parent, *out.parent.parents) if not p.exists()]
-    out.parent.mkdir(parents=True, exist_ok=True)
-    work = Path(tempfile.mkdtemp(dir=out.parent, prefix=f".{out.name}.", suffix=".tmp"))
     try:
-        os.chmod(work, 0o777 & ~_umask())  # mkdtemp's folder is private: make it like any new one
-        yield work
-        if replace:
-            old = work.with_suffix(".old")
-            os.replace(out, old)
+        with claim_output(out):
+            replace = check_output_folder(out, force=force, markers=markers)
+            work = Path(tempfile.mkdtemp(dir=out.parent, prefix=f".{out.name}.", suffix=".tmp"))
             try:
-                os.replace(work, out)
-            except OSError:
-                os.replace(old, out)
+                os.chmod(work, 0o777 & ~_umask())  # mkdtemp's folder is private: make it like any new one
+                yield work
+                if replace:
+                    old = work.with_suffix(".old")
+                    os.replace(out, old)
+                    try:
+                        os.replace(work, out)
+                    except OSError:
+                        os.replace(old, out)
+                        raise
+                    shutil.rmtree(old, ignore_errors=True)
+                else:
+                    os.replace(work, out)  # also over an empty folder
+            except BaseException:
+                shutil.rmtree(work, ignore_errors=True)
                 raise
-            shutil.rmtree(old, ignore_errors=True)
-        else:
-            os.replace(work, out)  # also over an empty folder; fails if another run filled it meanwhile
     except BaseException:
-        shutil.rmtree(work, ignore_errors=True)
         for folder in made:  # deepest first; only those still empty
             with contextlib.suppress(OSError):
                 folder.rmdir()
         raise
+
+
+#: Output folders this process holds (:func:`claim_output`), with how many claims each.
+_CLAIMS: dict[Path, int] = {}
+
+
+@contextlib.contextmanager
+def claim_output(out: str | Path) -> Iterator[None]:
+    """Hold the output ``out`` for this process while the block runs.
+
+    The claim is an exclusive lock (``flock``) on a hidden file ``.NAME.lock`` beside ``out``,
+    which holds the process id and is removed at the end; the operating system lets it go when
+    the process dies (even of ``kill -9``), so no claim outlives its process. A process may claim
+    the same output again (the claims nest). The folder ``out`` is in is made when missing.
+
+    Raises
+    ------
+    OutputError
+        When another process holds ``out``: two runs writing one folder would find out only when
+        the second renames its finished work into place, after all of it.
+    """
+    out = Path(out)
+    key = out.absolute()
+    if key in _CLAIMS:
+        _CLAIMS[key] += 1
+        try:
+            yield
+        finally:
+            _CLAIMS[key] -= 1
+        return
+    out.parent.mkdir(parents=True, exist_ok=True)
+    lock = out.parent / f".{out.name}.lock"
+    fd = _lock(lock, out)
+    _CLAIMS[key] = 1
+    try:
+        yield
+    finally:
+        del _CLAIMS[key]
+        with contextlib.suppress(OSError):
+            lock.unlink()  # while still held: a process waiting on the old file then tries again
+        os.close(fd)
+
+
+def _lock(lock: Path, out: Path) -> int:
+    """The descriptor of ``lock``, locked by this process and still the file under that name."""
+    while True:
+        fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o666 & ~_umask())
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError as exc:
+            holder = os.pread(fd, 32, 0).decode(errors="replace").strip() or "unknown"
+            os.close(fd)
+            if exc.errno not in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
+                raise OutputError(f"cannot claim {out}: {exc.strerror} ({lock})") from None
+            raise OutputError(
+                f"{out} is being written by another rkmpc process now (process {holder}); "
+                "wait for it to end, or choose another --out"
+            ) from None
+        try:
+            same = os.fstat(fd).st_ino == os.stat(lock).st_ino
+        except FileNotFoundError:
+            same = False
+        if same:  # not a file its last holder removed meanwhile
+            os.ftruncate(fd, 0)
+            os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+            return fd
+        os.close(fd)
 
 
 def _umask() -> int:
