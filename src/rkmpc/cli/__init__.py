@@ -120,6 +120,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         catch = contextlib.nullcontext() if args.command in ROS_COMMANDS else interruptible()
         with warnings.catch_warnings(), catch:
             warnings.simplefilter("ignore", IdentificationWarning)
+            warnings.showwarning = _one_line
             return commands[args.command](args)
     except (RkmpcError, ValueError, OSError, ImportError) as exc:
         # An ImportError is an optional package not installed (a backend, torch, rosbags): its
@@ -131,6 +132,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         # complete (rkmpc.core.io): nothing to clean up, nothing to say but this.
         print("rkmpc: interrupted", file=sys.stderr)
         return 130
+
+
+def _one_line(message: Warning | str, category: type[Warning], *_: Any, **__: Any) -> None:
+    """A warning on the terminal: ``rkmpc: warning: MESSAGE``, without the source line."""
+    print(f"rkmpc: warning: {message}", file=sys.stderr)
 
 
 def _cmd_tracks(_: argparse.Namespace) -> int:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import warnings
 from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -15,6 +16,7 @@ if TYPE_CHECKING:
 __all__ = [
     "CACHE_HELP",
     "VEHICLES",
+    "PaceWarning",
     "add_config_args",
     "add_force_arg",
     "add_ladder_args",
@@ -31,6 +33,12 @@ __all__ = [
 ]
 
 VEHICLES = ["f1tenth", "fullsize"]
+
+
+class PaceWarning(UserWarning):
+    """The pace asked for is beyond what the car can do (:meth:`rkmpc.config.car.CarConfig.check_limits`)."""
+
+
 CACHE_HELP = "trained-model cache (default: $RKMPC_CACHE_DIR, else ~/.cache/rkmpc)"
 
 
@@ -156,7 +164,10 @@ def car_config(args: argparse.Namespace) -> CarConfig:
     if car is not None:
         config = config.with_zoo_car(car)
     config = config.with_sensors(getattr(args, "sensors", None))
-    return config.at_pace(getattr(args, "lateral_accel", None), getattr(args, "max_speed", None))
+    config = config.at_pace(getattr(args, "lateral_accel", None), getattr(args, "max_speed", None))
+    for doubt in config.check_limits():
+        warnings.warn(doubt, PaceWarning, stacklevel=2)
+    return config
 
 
 def _pace(text: str, what: str) -> tuple[float, float]:

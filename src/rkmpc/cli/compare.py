@@ -115,7 +115,8 @@ def _drive(config: Any, out: Path, single: bool, console: Any) -> Any:
 
     def on_run(label: str, result: Any) -> None:
         result.log.to_csv(out / ("log.csv" if single and "+" not in label else f"log_{label}.csv"))
-        console.print(f"  {label}: {result.outcome}, {len(result.log)} steps")
+        why = f" ({result.failure})" if result.failure else ""
+        console.print(f"  {label}: {result.outcome}, {len(result.log)} steps{why}")
         warning = degraded(label, result)
         if warning is not None:
             console.print(f"[yellow]{warning}[/yellow]")
