@@ -15,6 +15,7 @@ import json
 import math
 import os
 import shutil
+import stat
 import tempfile
 import zipfile
 import zlib
@@ -32,7 +33,9 @@ __all__ = [
     "atomic_write",
     "check_output_file",
     "check_output_folder",
+    "check_regular_file",
     "claim_output",
+    "display_name",
     "output_folder",
     "read_npz",
     "write_json_atomic",
@@ -259,6 +262,16 @@ def _lock(lock: Path, out: Path) -> int:
         os.close(fd)
 
 
+def display_name(text: str) -> str:
+    """``text`` (a file name) safe to show and write: undecodable bytes as ``\\xNN``.
+
+    A file name that is not valid UTF-8 comes into Python with its bad bytes as lone surrogates
+    (:func:`os.fsdecode`), which no UTF-8 file, terminal font or plot can take; here they become
+    the escapes ``\\xe9``, so ``ov\\xe9al`` names the file ``ov<0xe9>al``.
+    """
+    return text.encode("utf-8", "surrogateescape").decode("utf-8", "backslashreplace")
+
+
 def _umask() -> int:
     """The process's file-creation mask (read by setting it and putting it back)."""
     mask = os.umask(0o022)
@@ -279,6 +292,35 @@ def write_json_atomic(path: str | Path, payload: Any) -> None:
         handle.write("\n")
 
 
+#: What a path that is not a regular file is, by the test of its mode.
+_SPECIAL = (
+    (stat.S_ISDIR, "a folder"),
+    (stat.S_ISFIFO, "a FIFO (named pipe)"),
+    (stat.S_ISCHR, "a character device"),
+    (stat.S_ISBLK, "a block device"),
+    (stat.S_ISSOCK, "a socket"),
+)
+
+
+def check_regular_file(path: str | Path) -> int:
+    """The size (bytes) of the regular file ``path``; :class:`InputFileError` saying what it is else.
+
+    Checked before a file is opened: a FIFO blocks the reader until something writes to it, a
+    device such as ``/dev/zero`` never ends, and ``/dev/null`` or a folder is no file of any kind.
+    """
+    try:
+        info = os.stat(path)
+    except FileNotFoundError:
+        raise InputFileError(path, "file not found") from None
+    except OSError as exc:
+        raise InputFileError(path, f"cannot read the file: {exc.strerror or exc}") from None
+    if not stat.S_ISREG(info.st_mode):
+        kinds = [name for test, name in _SPECIAL if test(info.st_mode)]
+        what = kinds[0] if kinds else "not a regular file"
+        raise InputFileError(path, f"{what}, not a regular file: give the file itself")
+    return info.st_size
+
+
 def read_npz(path: Path, *, max_bytes: int = MAX_NPZ_BYTES) -> dict[str, np.ndarray]:
     """All arrays of an ``.npz`` file, or :class:`InputFileError` when it is not a readable archive.
 
@@ -287,6 +329,7 @@ def read_npz(path: Path, *, max_bytes: int = MAX_NPZ_BYTES) -> dict[str, np.ndar
     add up to at most ``max_bytes`` (bytes, default :data:`MAX_NPZ_BYTES`): every data set and
     model file is read through here, so none can exhaust the memory or run for minutes.
     """
+    check_regular_file(path)
     _check_declared_sizes(path, max_bytes)
     try:
         loaded = np.load(path, allow_pickle=False)

@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import Any
 
 from rkmpc.core.errors import InputFileError
-from rkmpc.core.io import write_json_atomic
+from rkmpc.core.io import check_regular_file, write_json_atomic
 from rkmpc.core.jsonutil import to_json_ready
 from rkmpc.learning.identified_model import IdentifiedModel
 from rkmpc.learning.koopman.model import KoopmanModel
@@ -57,6 +57,7 @@ def load_identified(path: str | Path) -> IdentifiedModel:
     Versions 1 and 2 predate the held-out checks: their models load with status ``unchecked``.
     """
     path = Path(path)
+    check_regular_file(path)
     try:
         payload = json.loads(path.read_text())
     except FileNotFoundError:
@@ -91,6 +92,7 @@ def load_model(path: str | Path, kind: str) -> IdentifiedModel | KoopmanModel:
     """
     recipe = recipe_of_kind(kind)
     identified = isinstance(recipe.learner, IdentificationLearner)
+    check_regular_file(path)
     _refuse_other_format(Path(path), kind, identified=identified)
     if identified:
         return load_identified(path)
@@ -144,6 +146,7 @@ def load_any_model(path: str | Path) -> IdentifiedModel | KoopmanModel:
     """The model at ``path``, whatever its kind: an identified model (JSON) or a Koopman model (archive)
     of the kind its file records, checked as :func:`load_model` checks it."""
     path = Path(path)
+    check_regular_file(path)
     try:
         with path.open("rb") as handle:
             head = handle.read(64).lstrip()
