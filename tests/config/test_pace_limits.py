@@ -3,9 +3,12 @@ its tyres' grip is said (issue 27: such runs left the track with nothing said)."
 
 from __future__ import annotations
 
+import warnings
+
 import pytest
 
-from rkmpc.cli import main
+from rkmpc.cli import _one_line_warnings, main
+from rkmpc.cli.common import PaceWarning
 from rkmpc.config.car import tyre_grip
 from rkmpc.config.loader import load_car_config, load_preset
 from rkmpc.core.errors import InputFileError, ParameterError
@@ -47,8 +50,10 @@ def test_a_lateral_limit_beyond_the_grip_is_said_in_one_line(tmp_path, capsys):
     assert "30 m/s^2" in doubt and "grip, about 11.2 m/s^2" in doubt
     out = tmp_path / "o"
     args = ["run", "--controller", "pp", "--track", "oval", "--lateral-accel", "30", "--out", str(out)]
-    assert main(args) == 0
-    err = capsys.readouterr().err
-    assert err.splitlines()[0] == f"rkmpc: warning: {doubt}"
+    with pytest.warns(PaceWarning) as seen:
+        assert main(args) == 0
+    assert [str(w.message) for w in seen if w.category is PaceWarning] == [doubt]
+    with _one_line_warnings():  # how the command line shows a warning: one line, no source
+        assert warnings.formatwarning(doubt, PaceWarning, "common.py", 1) == f"rkmpc: warning: {doubt}\n"
     assert main([*args[:5], "--max-speed", "20", "--out", str(tmp_path / "o2")]) == 2
     assert "[vehicle.drive] max_speed: 8 m/s" in capsys.readouterr().err

@@ -170,6 +170,7 @@ def test_cli_train_refuses_data_of_another_period_unless_allowed(builtin_lap, tm
     assert main([*args, "--out", str(tmp_path / "id.json")]) == 2
     err = capsys.readouterr().err
     assert "lap.npz was recorded with dt = 0.05 s; this run uses dt = 0.01 s" in err
+    assert err.rstrip().endswith("(give --allow-mismatch to use it anyway)") and "allow_mismatch=" not in err
     assert not (tmp_path / "id.json").exists()
     with pytest.warns(ContractWarning):
         assert main([*args, "--allow-mismatch", "--out", str(tmp_path / "id.json")]) == 0

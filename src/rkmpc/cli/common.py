@@ -15,6 +15,8 @@ if TYPE_CHECKING:
 
 __all__ = [
     "CACHE_HELP",
+    "CONTROLLERS_HELP",
+    "SCALE_HELP",
     "VEHICLES",
     "PaceWarning",
     "add_config_args",
@@ -39,7 +41,11 @@ class PaceWarning(UserWarning):
     """The pace asked for is beyond what the car can do (:meth:`rkmpc.config.car.CarConfig.check_limits`)."""
 
 
-CACHE_HELP = "trained-model cache (default: $RKMPC_CACHE_DIR, else ~/.cache/rkmpc)"
+CACHE_HELP = (
+    "trained-model cache (default: $RKMPC_CACHE_DIR, else $XDG_CACHE_HOME/rkmpc, else ~/.cache/rkmpc)"
+)
+SCALE_HELP = "scale of track files (default: the car's, 0.1 for f1tenth, 1 for fullsize)"
+CONTROLLERS_HELP = "comma-separated controller names"
 
 
 def at_least(low: int) -> Callable[[str], int]:
@@ -235,9 +241,7 @@ def add_scenario_args(
     parser.add_argument(
         "--raceline", default=None, help="TUM race-line CSV to track instead of the centre line"
     )
-    parser.add_argument(
-        "--scale", type=float, default=None, help="scale of track files (default: the car's, 0.1 for f1tenth)"
-    )
+    parser.add_argument("--scale", type=float, default=None, help=SCALE_HELP)
     add_config_args(parser)
     parser.add_argument(
         "--car", default=None, help="drive a car of the zoo (gym, overshoot, ..., random-<seed>) instead"
