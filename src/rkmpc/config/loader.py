@@ -58,7 +58,7 @@ from rkmpc.config.ros import RosSettings
 from rkmpc.control.settings import SECTIONS as CONTROLLER_SECTIONS
 from rkmpc.control.settings import ControllerSettings
 from rkmpc.core.errors import InputFileError, ParameterError
-from rkmpc.core.io import check_regular_file
+from rkmpc.core.reading import check_regular_file
 from rkmpc.core.registry import Registry
 from rkmpc.core.settings import build_dataclass, check_keys, check_value
 from rkmpc.core.validation import is_positive_number

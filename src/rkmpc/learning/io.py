@@ -8,8 +8,9 @@ from pathlib import Path
 from typing import Any
 
 from rkmpc.core.errors import InputFileError
-from rkmpc.core.io import check_regular_file, write_json_atomic
+from rkmpc.core.io import write_json_atomic
 from rkmpc.core.jsonutil import to_json_ready
+from rkmpc.core.reading import check_regular_file
 from rkmpc.learning.identified_model import IdentifiedModel
 from rkmpc.learning.koopman.model import KoopmanModel
 from rkmpc.learning.recipes import IdentificationLearner, recipe_of_kind
@@ -54,6 +55,9 @@ def save_identified(model: IdentifiedModel, path: str | Path, metadata: dict[str
 def load_identified(path: str | Path) -> IdentifiedModel:
     """Read a model written by :func:`save_identified` (versions 1 to 3); clear errors for bad files.
 
+    The file's metadata (with the contract of what the model was made with) is kept on the model
+    as ``metadata_``, as :class:`~rkmpc.learning.koopman.model.KoopmanModel` keeps its own.
+
     Versions 1 and 2 predate the held-out checks: their models load with status ``unchecked``.
     """
     path = Path(path)
@@ -78,9 +82,15 @@ def load_identified(path: str | Path) -> IdentifiedModel:
     if data is None or sorted(data) != sorted(names):
         raise InputFileError(path, f"expected the fields {names} (version {version})", field="model")
     try:
-        return IdentifiedModel(**data)
+        model = IdentifiedModel(**data)
     except (TypeError, ValueError) as exc:
         raise InputFileError(path, str(exc), field="model") from None
+    metadata = payload.get("metadata")
+    # What the model was made with (its contract: car, plant, period, wheelbase, scale), kept as a
+    # Koopman model keeps it (``metadata_``), so that a model file is checked against the car it
+    # drives (rkmpc.sim.build.check_model) whatever its kind.
+    object.__setattr__(model, "metadata_", dict(metadata) if isinstance(metadata, dict) else {})
+    return model
 
 
 def load_model(path: str | Path, kind: str) -> IdentifiedModel | KoopmanModel:
