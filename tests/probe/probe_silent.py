@@ -108,7 +108,7 @@ def policy_period(_: Probe) -> Evidence:
     from rkmpc.envs.f1tenth import F1TenthEnvConfig, F1TenthTrackEnv
 
     env = F1TenthTrackEnv(scenario(), F1TenthEnvConfig(timestep=0.05))
-    policy = ControllerPolicy(controller("pp"), 0.01)  # each command held 5 steps of 0.05 s
+    policy = ControllerPolicy(controller("lmpc"), 0.01)  # each command held 5 steps of 0.05 s
     return raises(lambda: run_episode(env, policy, seed=0, max_steps=20), "0.01", "0.05")
 
 
