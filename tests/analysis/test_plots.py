@@ -65,8 +65,8 @@ def _labels(ax) -> list[str]:
 
 
 def test_controller_style():
-    assert controller_style("rkmpc") == {"color": "#D55E00", "ls": "-", "lw": 1.8}
-    assert controller_style("lmpc+delay") == {"color": "#0072B2", "ls": "--", "lw": 1.3}
+    assert controller_style("rkmpc") == {"color": "#D55E00", "ls": "-", "lw": 1.8, "zorder": 3.0}
+    assert controller_style("lmpc+delay") == {"color": "#0072B2", "ls": "--", "lw": 1.4, "zorder": 2.4}
     assert controller_style("unknown") == {"lw": 1.1, "ls": "-"}
 
 

@@ -200,3 +200,29 @@ def test_no_fall_backs_no_marks(track):
     fig = plot_solve_times({"lmpc": log, "old": old})
     assert not [line for line in fig.axes[0].get_lines() if line.get_marker() == "v"]
     assert not any("fall-back" in t.get_text() for t in fig.legends[0].get_texts())
+
+
+def test_solve_times_flag_a_maximum_beyond_the_control_period(track):
+    logs = {"lmpc": _log(track, 0.1), "nmpc-dynamic": _log(track, 0.1)}
+    logs["nmpc-dynamic"]["solve_time_s"][7] = 0.063  # one step of 63 ms at a 50 ms period
+    ax = plot_solve_times(logs, period_s=0.05).axes[0]
+    texts = {t.get_text(): t for t in ax.texts}
+    (late,) = [text for text in texts if "beyond" in text]
+    assert late.endswith("/ 63.00 ms: max beyond the 50 ms period!")
+    assert texts[late].get_color() == "#D55E00" and texts[late].get_fontweight() == "bold"
+    assert [t.get_text() for t in ax.get_yticklabels()] == ["lmpc", "nmpc-dynamic\nLATE"]
+    assert ax.get_xlim()[1] > 63.0 * 10  # the flagged text has room on the axes
+    ax = plot_solve_times({"lmpc": logs["lmpc"]}, period_s=0.05).axes[0]
+    assert not [t for t in ax.texts if "beyond" in t.get_text()]
+
+
+def test_the_lmpc_is_drawn_over_the_nonlinear_mpcs_and_lmpc_id_stands_out(track):
+    """The demo plot: lmpc's path was hidden under nmpc's, lmpc-id's hard to find."""
+    order = ["pp", "nmpc", "nmpc-dynamic", "lmpc", "kmpc", "rkmpc-paper", "lmpc-id", "rkmpc"]
+    z = {name: CONTROLLER_STYLE[name].zorder for name in order}
+    assert [z[name] for name in order] == sorted(z.values()) and len({z["nmpc"], z["lmpc"]}) == 2
+    assert CONTROLLER_STYLE["lmpc-id"].linewidth > CONTROLLER_STYLE["kmpc"].linewidth
+    logs = {name: _log(track, 0.1) for name in ("nmpc", "lmpc", "lmpc-id", "rkmpc")}  # one path for all
+    fig = plot_runs(logs, track)
+    paths = {line.get_label(): line.get_zorder() for line in fig.axes[0].get_lines()}
+    assert paths["nmpc"] < paths["lmpc"] < paths["lmpc-id"] < paths["rkmpc"]

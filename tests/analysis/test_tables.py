@@ -240,3 +240,38 @@ def test_the_table_fits_a_narrow_terminal_without_cutting_a_cell():
     assert "…" not in text  # rich marks a cut cell with an ellipsis
     for name in RESULTS:
         assert name in text
+
+
+def test_a_completed_lap_that_slid_is_flagged_and_said(capsys):
+    """peak a_y 19.1 m/s^2 on a lap marked done with a 5 m/s^2 limit (a slide at the finish): flagged."""
+    from rich.console import Console
+
+    from rkmpc.analysis.tables import SLIDE_FACTOR, rich_tables_fitting, slid
+
+    results = {
+        "lmpc": _metrics(0.04, 0.01, 0.25, lateral_accel_max_m_s2=8.2),  # 1.6 x: transients of a clean lap
+        "rkmpc": _metrics(0.03, 0.01, 0.2, lateral_accel_max_m_s2=19.1),
+        "pp": _metrics(
+            0.05, 0.02, 0.5, completed=False, lateral_accel_max_m_s2=30.0
+        ),  # off: not a "done" lap
+    }
+    assert SLIDE_FACTOR == 2.0
+    assert [slid(m, 5.0) for m in results.values()] == [False, True, False]
+    assert not any(slid(m, None) for m in results.values())  # no limit known: nothing flagged
+    text = markdown_table(results, lateral_limit=5.0)
+    rows = {
+        _cells(line)[0]: _cells(line)
+        for line in text.splitlines()
+        if line.startswith("| ") and "---" not in line
+    }
+    assert rows["rkmpc"][N_COLUMNS - 1] == "19.1 !" and rows["lmpc"][N_COLUMNS - 1] == "8.2"
+    assert rows["pp"][N_COLUMNS - 1] == "30.0"
+    note = "! peak a_y beyond 2 x the pace's lateral limit (5 m/s²) on a completed lap (rkmpc): the car slid"
+    assert text.rstrip().splitlines()[-1] == note
+    assert "!" not in markdown_table(results)  # without the limit, as before
+    for width in (80, 300):  # the wide table and the tables on their side
+        console = Console(width=width, record=True, file=None)
+        for table in rich_tables_fitting(results, "builtin", width, lateral_limit=5.0):
+            console.print(table)
+        shown = console.export_text()
+        assert "19.1 !" in shown and " ".join(note.split()) in " ".join(shown.split())

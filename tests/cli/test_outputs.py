@@ -71,6 +71,59 @@ def test_an_output_file_is_checked_before_the_work(tmp_path):
     assert not (tmp_path / "new").exists()
 
 
+def _full_disk(**_kwargs):
+    """A temporary file on a full disk: ``/dev/full`` refuses every write with ENOSPC."""
+    return open("/dev/full", "wb")
+
+
+@pytest.mark.skipif(not Path("/dev/full").exists(), reason="no /dev/full on this system")
+def test_train_onto_a_full_disk_or_an_unwritable_path_fails_before_training(tmp_path, capsys, monkeypatch):
+    data = tmp_path / "none.npz"  # never read: the output is checked first
+    out = tmp_path / "models" / "m.rkm"
+    with monkeypatch.context() as patch:
+        patch.setattr("rkmpc.core.io.tempfile.NamedTemporaryFile", _full_disk)
+        code = main(["train", "--data", str(data), "--kind", "residual", "--out", str(out)])
+    err = capsys.readouterr().err
+    assert code == 2 and f"cannot write {out}: No space left on device" in err, err
+    assert str(tmp_path) in err and "none.npz" not in err
+    assert list(tmp_path.iterdir()) == []  # neither the folder nor a test file is left
+    # /proc takes no new files, whoever asks (root included, which passes any permission check).
+    code = main(["train", "--data", str(data), "--kind", "residual", "--out", "/proc/m.rkm"])
+    err = capsys.readouterr().err
+    assert code == 2 and "cannot write /proc/m.rkm" in err, err
+
+
+def _hold(out: Path) -> subprocess.Popen:
+    """Another process holding the output ``out`` (as a run writing it would) until its stdin closes."""
+    script = (
+        "import sys\nfrom rkmpc.core.io import claim_output\n"
+        f"with claim_output({str(out)!r}):\n    print('held', flush=True)\n    sys.stdin.read()\n"
+    )
+    env = {**os.environ, "PYTHONPATH": str(SRC)}
+    holder = subprocess.Popen(
+        [sys.executable, "-c", script], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, env=env
+    )
+    assert holder.stdout is not None and holder.stdout.readline() == "held\n"
+    return holder
+
+
+def test_a_second_run_into_a_folder_being_written_is_refused_at_once(tmp_path, capsys):
+    out = tmp_path / "o"
+    holder = _hold(out)
+    try:
+        args = ["run", "--controller", "pp", "--track", "oval", "--out", str(out)]
+        assert main(args) == 2
+        err = capsys.readouterr().err
+        assert f"{out} is being written by another rkmpc process now (process {holder.pid})" in err
+        assert "driving" not in err  # refused before the lap
+        assert [p.name for p in tmp_path.iterdir()] == [".o.lock"]
+    finally:
+        holder.kill()  # as kill -9: the claim goes with its process
+        holder.wait(timeout=60)
+    assert main(args) == 0
+    assert [p.name for p in tmp_path.iterdir()] == ["o"]  # no lock file left behind
+
+
 def test_train_into_a_folder_fails_before_training(tmp_path, capsys):
     # The data file does not even exist: the output is checked first.
     code = main(["train", "--data", str(tmp_path / "none.npz"), "--kind", "residual", "--out", str(tmp_path)])

@@ -14,7 +14,8 @@ import pytest
 
 from rkmpc.core.angles import TWO_PI, branch_shift, wrap_angle, wrap_scalar
 from rkmpc.core.errors import InputFileError
-from rkmpc.core.io import atomic_write, read_npz, write_json_atomic, write_text_atomic
+from rkmpc.core.io import atomic_write, write_json_atomic, write_text_atomic
+from rkmpc.core.reading import read_npz
 from rkmpc.core.versions import RESULT_PACKAGES, package_version, versions
 
 PI = math.pi

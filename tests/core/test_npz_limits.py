@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from rkmpc.core.errors import InputFileError
-from rkmpc.core.io import MAX_NPZ_BYTES, read_npz
+from rkmpc.core.reading import MAX_NPZ_BYTES, read_npz
 from rkmpc.learning.data.dataset import TransitionDataset
 from rkmpc.learning.koopman.model import KoopmanModel
 

@@ -170,9 +170,44 @@ def test_cli_train_refuses_data_of_another_period_unless_allowed(builtin_lap, tm
     assert main([*args, "--out", str(tmp_path / "id.json")]) == 2
     err = capsys.readouterr().err
     assert "lap.npz was recorded with dt = 0.05 s; this run uses dt = 0.01 s" in err
+    assert err.rstrip().endswith("(give --allow-mismatch to use it anyway)") and "allow_mismatch=" not in err
     assert not (tmp_path / "id.json").exists()
     with pytest.warns(ContractWarning):
         assert main([*args, "--allow-mismatch", "--out", str(tmp_path / "id.json")]) == 0
     metadata = json.loads((tmp_path / "id.json").read_text())["metadata"]
     assert metadata[CONTRACT_KEY]["dt"] == 0.05
     assert "(allowed)" in metadata["contract_warnings"][0]
+
+
+def test_an_identified_model_file_is_checked_against_the_car_it_drives(
+    builtin_lap, builtin_scenario, tmp_path
+):
+    """lmpc-id's JSON keeps its contract when read back: a model of the f1tenth plant on the zoo's gym
+    car, or at another period, is refused as a Koopman model is (issue 27: it was never checked)."""
+    from rkmpc.config.loader import load_preset
+    from rkmpc.experiments.training import train_to_file
+    from rkmpc.learning.contract import Provenance
+    from rkmpc.learning.io import load_model
+    from rkmpc.sim.scenario import Scenario
+
+    vehicle = builtin_scenario.vehicle
+    path = tmp_path / "lmpc-id.json"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        train_to_file(
+            builtin_lap,
+            Provenance(vehicle="f1tenth", dt=0.05, wheelbase=vehicle.wheelbase),
+            vehicle,
+            "identified",
+            path,
+        )
+    model = load_model(path, "identified")
+    assert contract_of(model.metadata_).plant == "f1tenth"
+    assert check_model(model, builtin_scenario, source="lmpc-id.json") == ()
+    gym = Scenario.from_car(load_preset("f1tenth").with_zoo_car("gym"), "builtin")
+    with pytest.raises(
+        ContractError, match=r"lmpc-id.json was trained with plant = 'f1tenth'; this run uses plant = 'gym'"
+    ):
+        check_model(model, gym, source="lmpc-id.json")
+    with pytest.raises(ContractError, match=r"dt = 0\.05 s; this run uses dt = 0\.1 s"):
+        build_controller("lmpc-id", replace(builtin_scenario, dt=0.1), model)

@@ -101,13 +101,29 @@ def test_no_more_workers_than_jobs(monkeypatch):
     import rkmpc.experiments.parallel as parallel
 
     seen = []
-    real = parallel._backend_config
+    real = parallel.backend_config
 
     def spy(backend, n_jobs, address):
         seen.append(n_jobs)
         return real(backend, n_jobs, address)
 
-    monkeypatch.setattr(parallel, "_backend_config", spy)
+    monkeypatch.setattr(parallel, "backend_config", spy)
     out = run_jobs([JOBS[1], JOBS[-1]], n_jobs=8, backend="loky")
     assert seen == [2]
     assert [o.value for o in out] == [1, "1"]
+
+
+def test_a_backend_whose_package_is_missing_is_one_clear_line_before_any_work(monkeypatch):
+    import importlib.util
+
+    from rkmpc.core.errors import MissingPackageError
+    from rkmpc.experiments import backends
+
+    real = importlib.util.find_spec
+    monkeypatch.setattr(
+        backends.importlib.util, "find_spec", lambda name, *rest: None if name == "ray" else real(name, *rest)
+    )
+    with pytest.raises(MissingPackageError, match=r"^backend 'ray' needs ray, not installed: pip install"):
+        run_jobs(JOBS, backend="ray")
+    assert issubclass(MissingPackageError, ImportError)  # what callers catching ImportError still see
+    backends.check_backend("loky")  # nothing to install

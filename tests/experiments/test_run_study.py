@@ -109,3 +109,27 @@ def test_where_the_jobs_run_is_checked():
         with pytest.raises(ParameterError):
             Parallel(**bad)
     assert Parallel(backend="dask", address="tcp://localhost:8786").address == "tcp://localhost:8786"
+
+
+def _full_disk(path, payload):
+    """What ``write_json_atomic`` does on a full disk."""
+    raise OSError(28, "No space left on device", str(path))
+
+
+@pytest.mark.parametrize("fails", ["entries", "header"])
+def test_a_journal_on_a_full_disk_loses_no_result_and_says_so_once(tmp_path, monkeypatch, fails):
+    import rkmpc.experiments.journal as journal_module
+
+    CALLS.clear()
+    folder = tmp_path / "j"
+    if fails == "entries":  # the journal was made, then the disk filled up
+        run_study(_Cubes(()), journal=folder)
+    monkeypatch.setattr(journal_module, "write_json_atomic", _full_disk)
+    said: list[str] = []
+    result = run_study(_Cubes((1, 2, -3)), journal=folder, say=said.append)
+    assert result.values == [(1, 1), (2, 8), None]  # every job ran, every result kept
+    told = [line for line in said if "journal" in line]
+    assert len(told) == 2, said  # the first failure, then the count at the end
+    assert str(folder) in told[0] and "No space left on device" in told[0] and "goes on" in told[0]
+    assert "2 of 3 finished jobs not kept" in told[1]
+    assert sorted(p.name for p in folder.glob("*.json")) == ([] if fails == "header" else ["journal.json"])

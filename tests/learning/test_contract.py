@@ -41,7 +41,10 @@ def test_each_field_that_differs_is_refused_naming_file_field_and_both_values(fi
         MADE.check(run, source="model.npz", made="trained")
     message = str(info.value)
     assert f"model.npz was trained with {was}; this run uses {uses}" in message
-    assert "--allow-mismatch" in message
+    assert (
+        message.endswith("(pass allow_mismatch=True to use it anyway)") and "--allow-mismatch" not in message
+    )
+    assert info.value.for_command_line().endswith("(give --allow-mismatch to use it anyway)")
     assert info.value.source == "model.npz"
 
 

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import json
 import math
+import os
+import re
 from dataclasses import asdict
 
 import numpy as np
@@ -480,3 +482,18 @@ def test_a_model_file_of_the_other_format_says_which_it_is(tmp_path):
     with pytest.raises(InputFileError, match=r"holds a JSON file.*'residual' model archive") as info:
         load_model(identified, "residual")
     assert "pickle" not in str(info.value)
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="no FIFOs on this system")
+def test_a_model_path_that_is_no_file_says_what_it_is(tmp_path):
+    """``--model`` naming a device, a folder or a FIFO: what it is, not "file not found" (nor a hang)."""
+    from rkmpc.learning.io import load_any_model
+
+    fifo = tmp_path / "model.rkm"
+    os.mkfifo(fifo)  # opening it would block until a writer comes
+    cases = [("/dev/null", "a character device"), (str(tmp_path), "a folder"), (str(fifo), "a FIFO")]
+    loads = (lambda p: load_model(p, "residual"), lambda p: load_model(p, "identified"), load_any_model)
+    for path, what in cases:
+        for load in loads:
+            with pytest.raises(InputFileError, match=rf"^{path}: {re.escape(what)}\b.*, not a regular file"):
+                load(path)

@@ -1,4 +1,4 @@
-"""The case table of issue 13's probe: every bad input, fault and newcomer's stumble, replayed.
+"""The case table of the probes (issues 13 and 27): every bad input, fault and newcomer's stumble, replayed.
 
 A case is a small function ``case(probe) -> Evidence`` registered with :func:`case` under a stable
 id, a one-line description and the outcome it must have:
@@ -16,6 +16,13 @@ The case asserts what identifies the problem (raising ``AssertionError`` otherwi
 :class:`Evidence` it saw: the outcome class it observed and the message. The test module
 (``test_probe.py``) and ``benchmarks/probe_table.py`` both run :func:`all_cases`, so the list is
 written once. Cases import the project lazily, so the table is cheap to build.
+
+A case of issue 27's probe also says what its problem was when the probe found it (``problem``:
+one of :data:`PROBLEMS`, ``lost`` a recording or results lost, ``hang`` no end, ``silent`` a wrong
+result with nothing said, ``traceback``, ``unclear`` an unclear or late message, ``friction`` a
+newcomer's stumble): a case that fails again counts as that problem in the table's summary, a case
+that passes as its expected outcome. A case that could hang runs :func:`within` a guard (a bound
+against a hang, never what is measured).
 """
 
 from __future__ import annotations
@@ -34,6 +41,12 @@ CLEAR_ERROR = "clear_error"
 GRACEFUL = "graceful"
 CORRECT = "correct"
 OUTCOMES = (CLEAR_ERROR, GRACEFUL, CORRECT)
+#: What a case of issue 27 was when the probe found it (see the module).
+PROBLEMS = ("lost", "hang", "silent", "traceback", "unclear", "friction")
+
+
+class Hang(AssertionError):
+    """A case ran past its guard (:func:`within`)."""
 
 
 @dataclass(frozen=True)
@@ -101,6 +114,7 @@ class Case:
     slow: bool = False
     xfail: str | None = None
     see_also: tuple[str, ...] = field(default=())
+    problem: str | None = None
 
 
 _CASES: dict[str, Case] = {}
@@ -115,13 +129,17 @@ def case(
     slow: bool = False,
     xfail: str | None = None,
     see_also: Sequence[str] = (),
+    problem: str | None = None,
 ) -> Callable[[Callable[[Probe], Evidence]], Callable[[Probe], Evidence]]:
     """Register the decorated function as the case ``case_id``."""
     assert expected in OUTCOMES, expected
+    assert problem is None or problem in PROBLEMS, problem
 
     def register(fn: Callable[[Probe], Evidence]) -> Callable[[Probe], Evidence]:
         assert case_id not in _CASES, f"duplicate case id {case_id}"
-        _CASES[case_id] = Case(case_id, group, description, expected, fn, slow, xfail, tuple(see_also))
+        _CASES[case_id] = Case(
+            case_id, group, description, expected, fn, slow, xfail, tuple(see_also), problem
+        )
         return fn
 
     return register
@@ -129,7 +147,9 @@ def case(
 
 def all_cases() -> list[Case]:
     """Every case, in the order of the issue."""
-    for module in ("probe_controllers", "probe_learning", "probe_outputs", "probe_messages"):
+    modules = ("probe_controllers", "probe_learning", "probe_outputs", "probe_messages")
+    issue27 = ("probe_lost", "probe_hangs", "probe_silent", "probe_unclear", "probe_friction")
+    for module in (*modules, *issue27):
         importlib.import_module(module)  # registers its cases
     return list(_CASES.values())
 
@@ -169,6 +189,32 @@ def cli_error(probe: Probe, argv: Sequence[str], *needles: str) -> Evidence:
     for needle in needles:
         assert needle in run.err, f"{needle!r} not in {run.err[-500:]!r}"
     return Evidence(CLEAR_ERROR, _one_line(lines[-1]))
+
+
+@contextlib.contextmanager
+def within(seconds: float, what: str) -> Iterator[None]:
+    """Raise :class:`Hang` when the block runs past ``seconds`` (a guard against a hang; main thread)."""
+    import signal
+
+    def alarm(*_: object) -> None:
+        raise Hang(f"{what}: still running after {seconds:g} s")
+
+    previous = signal.signal(signal.SIGALRM, alarm)
+    signal.setitimer(signal.ITIMER_REAL, seconds)
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0.0)
+        signal.signal(signal.SIGALRM, previous)
+
+
+def warned(seen: Sequence[warnings.WarningMessage], category: type[Warning], *needles: str) -> str:
+    """The one warning of ``category`` among ``seen`` (from :func:`caught_warnings`), with every needle."""
+    said = [str(w.message) for w in seen if issubclass(w.category, category)]
+    assert len(said) == 1, [str(w.message) for w in seen]
+    for needle in needles:
+        assert needle in said[0], f"{needle!r} not in {said[0]!r}"
+    return _one_line(said[0])
 
 
 @contextlib.contextmanager
@@ -218,6 +264,21 @@ def models() -> dict[str, Any]:
         "kmpc": fit("koopman"),
         "rkmpc-paper": fit("paper"),
     }
+
+
+def identified_model(probe: Probe) -> Any:
+    """An identified model of :func:`lap` as ``rkmpc train --kind identified`` writes it (with a contract)."""
+    from rkmpc.experiments.training import train_to_file
+    from rkmpc.learning.contract import Provenance
+    from rkmpc.learning.io import load_model
+
+    sc = scenario()
+    path = probe.path("lmpc-id.json")
+    made_for = Provenance(vehicle=sc.vehicle_name, dt=sc.dt, wheelbase=sc.vehicle.wheelbase)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        train_to_file(lap(), made_for, sc.vehicle, "identified", path)
+    return load_model(path, "identified")
 
 
 @functools.cache

@@ -138,7 +138,7 @@ def jobs_beyond_jobs(_: Probe) -> Evidence:
 
     import rkmpc.experiments.parallel as parallel
 
-    with mock.patch.object(parallel, "_backend_config", wraps=parallel._backend_config) as spy:
+    with mock.patch.object(parallel, "backend_config", wraps=parallel.backend_config) as spy:
         out = parallel.run_jobs([parallel.Job("hyp", math.hypot, (3.0, 4.0))], n_jobs=8, backend="loky")
     workers = [call.args[1] for call in spy.call_args_list]
     assert workers == [1] and out[0].value == 5.0, (workers, out)

@@ -276,9 +276,12 @@ def test_the_node_stops_the_car_when_its_odometry_dies(tmp_path, ros_env, monkey
     # own name, with every command it sent (the final stop last) and the odometry it drove on.
     from rkmpc.learning.data.bags import BagImportConfig, import_bag
     from rkmpc.learning.data.bags.read import read_streams
+    from rkmpc.learning.data.bags.stream import RECORDING_KEY, read_metadata
     from rkmpc.vehicle.params import f1tenth
 
-    assert (bag / "metadata.yaml").is_file() and [p.suffix for p in bag.glob("*.db3")] == [".db3"]
+    info = read_metadata(bag)  # closed segments of 2 s, all listed, the bag marked closed
+    assert sorted(info["relative_file_paths"]) == sorted(p.name for p in bag.glob("*.db3"))
+    assert info["custom_data"] == {RECORDING_KEY: "closed"} and not (bag / ".recording").exists()
     assert [p for p in tmp_path.iterdir() if p.name.startswith(".bag")] == []
     streams = read_streams(bag, BagImportConfig())
     assert len(streams.drive) == len(rows) and streams.drive.values[-1][0] == 0.0
@@ -286,6 +289,44 @@ def test_the_node_stops_the_car_when_its_odometry_dies(tmp_path, ros_env, monkey
     assert len(streams.odom) >= sum(r["fresh"] == "1" for r in rows)
     data = import_bag(bag, f1tenth(), BagImportConfig(min_samples=10))
     assert len(data) >= 10 and np.all(np.isfinite(data.obs[:, :5]))
+
+
+@pytest.mark.slow
+def test_a_node_killed_with_sigkill_after_a_lap_leaves_a_bag_with_that_lap(tmp_path, ros_env, capsys):
+    """``kill -9`` of ``rkmpc node --record`` (a crash, the out-of-memory killer, a power cut on the
+    car): the bag is there under its name and ``collect --from-bag`` imports at least 90 % of the lap
+    driven before (all but the segment being written when the node died, 2 s at most)."""
+    from rkmpc.cli import main
+    from rkmpc.learning.data.dataset import TransitionDataset
+    from rkmpc.sim.log import StepLog
+
+    bag = tmp_path / "bag"
+    node_args = ["node", "--config", str(REPO_CAR), "--controller", "lmpc", "--record", str(bag)]
+    node_args += ["--ros-args", "-p", "trigger:=odometry", "-p", f"topics.steering:={STEERING}"]
+    node = start(node_args, ros_env, tmp_path / "node.log")
+    try:
+        sim_args = ["sim-node", "--clock", "lockstep", "--laps", "1", "--steering-topic", STEERING]
+        sim_args += ["--startup-timeout", str(HANG), "--answer-timeout", str(HANG)]
+        sim = start([*sim_args, "--out", str(tmp_path / "sim")], ros_env, tmp_path / "sim.log")
+        try:
+            assert sim.wait(timeout=HANG) == 0, (tmp_path / "sim.log").read_text()
+        finally:
+            if sim.poll() is None:
+                sim.kill()
+        assert node.poll() is None, (tmp_path / "node.log").read_text()
+    finally:
+        node.send_signal(signal.SIGKILL)  # no chance to close the bag
+        node.wait(timeout=60)
+    assert node.returncode == -signal.SIGKILL
+    out = tmp_path / "lap.npz"
+    capsys.readouterr()
+    assert main(["collect", "--from-bag", str(bag), "--steer-topic", STEERING, "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert "a recording that never ended" in err, err
+    data = TransitionDataset.load(out)
+    lap = len(StepLog.from_csv(tmp_path / "sim" / "log.csv")) - 1  # transitions of the lap driven
+    assert data.metadata["recording"] == "unfinished"
+    assert len(data) >= 0.9 * lap, (len(data), lap)
 
 
 def test_a_bag_name_may_carry_the_start_time():

@@ -193,8 +193,8 @@ def test_ctrl_c_stops_every_process_and_the_node_closes_its_bag(tmp_path):
     )
     try:
         deadline = time.monotonic() + 300
-        # Until the node records: its bag's draft is there (the laps take longer than that).
-        while not any(p.name.startswith(".bag.") for p in (out / "record").glob(".*")):
+        # Until the node records: its bag's segment being written is there (the laps take longer).
+        while not (out / "record" / "bag" / ".recording").is_dir():
             assert loop.poll() is None and time.monotonic() < deadline, "the recording never started"
             time.sleep(0.05)
         loop.send_signal(signal.SIGINT)
@@ -204,8 +204,10 @@ def test_ctrl_c_stops_every_process_and_the_node_closes_its_bag(tmp_path):
             loop.kill()
     assert loop.returncode == 130 and "interrupted" in text, text
     # The node stopped with a final stop and closed its bag: complete, under its own name.
-    assert (out / "record" / "bag" / "metadata.yaml").is_file()
-    assert not any(p.name.startswith(".bag.") for p in (out / "record").glob(".*"))
+    from rkmpc.learning.data.bags.stream import RECORDING_KEY, read_metadata
+
+    assert read_metadata(out / "record" / "bag")["custom_data"] == {RECORDING_KEY: "closed"}
+    assert not (out / "record" / "bag" / ".recording").exists()
     alive = [p for p in Path("/proc").glob("[0-9]*") if _cmdline(p).find(str(out)) >= 0]
     assert alive == []
 

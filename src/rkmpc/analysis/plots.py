@@ -188,7 +188,9 @@ def plot_solve_times(logs: Mapping[str, StepLog], period_s: float | None = None,
         One log per controller; its ``solve_time_s`` column is used (s), and its
         ``status`` column, if any.
     period_s : float, optional
-        Control period (s), drawn as a vertical line for scale.
+        Control period (s), drawn as a vertical line for scale; a controller whose slowest step
+        took longer is flagged (its numbers in red, ``LATE`` under its name): on a car it would
+        have sent that command late.
     title : str
         Figure title.
 
@@ -207,23 +209,32 @@ def plot_solve_times(logs: Mapping[str, StepLog], period_s: float | None = None,
     fig, ax = plt.subplots(figsize=(9, 0.5 * len(names) + 2.0), layout="constrained")
     positions = np.arange(len(names))[::-1]
     ax.boxplot(samples, positions=positions, orientation="horizontal", whis=(1, 99), showfliers=False)
-    for pos, ms in zip(positions, samples, strict=True):
+    period_ms = None if period_s is None else 1e3 * period_s
+    late = []  # the controllers whose slowest step took longer than the control period
+    for pos, ms, name in zip(positions, samples, names, strict=True):
         if np.isfinite(ms).any():
             ax.plot(np.nanmean(ms), pos, "o", color="tab:blue", ms=4)
             ax.plot(np.nanmax(ms), pos, "x", color="tab:red", ms=6)
+            text = f"{np.nanmedian(ms):.3f} / {np.nanmax(ms):.2f} ms"
+            beyond = period_ms is not None and np.nanmax(ms) > period_ms
+            if beyond:
+                late.append(name)
+                text += f": max beyond the {period_ms:g} ms period!"
             ax.text(
                 np.nanmax(ms) * 1.15,
                 pos,
-                f"{np.nanmedian(ms):.3f} / {np.nanmax(ms):.2f} ms",
+                text,
                 va="center",
                 fontsize=8,
+                color="#D55E00" if beyond else "k",
+                fontweight="bold" if beyond else "normal",
             )
     ax.plot([], [], "o", color="tab:blue", ms=4, label="mean")
     ax.plot([], [], "x", color="tab:red", ms=6, label="max")
     ax.set_xscale("log")
     lo = min((np.nanmin(ms) for ms in samples if np.isfinite(ms).any()), default=0.01)
     hi = max((np.nanmax(ms) for ms in samples if np.isfinite(ms).any()), default=1.0)
-    right = max(hi * 8, 1e3 * period_s * 1.5) if period_s is not None else hi * 8
+    right = max(hi * (40 if late else 8), 1e3 * period_s * 1.5) if period_s is not None else hi * 8
     ax.set_xlim(lo / 2, right)
     total = sum(len(steps) for steps in fallbacks.values())
     if total:
@@ -240,7 +251,8 @@ def plot_solve_times(logs: Mapping[str, StepLog], period_s: float | None = None,
             1e3 * period_s, color="0.4", ls="--", lw=0.8, label=f"control period {1e3 * period_s:g} ms"
         )
     counts = [len(fallbacks[name]) for name in names]
-    ax.set_yticks(positions, [f"{n}\n{c} fall-backs" if c else n for n, c in zip(names, counts, strict=True)])
+    ticks = [f"{n}\n{c} fall-backs" if c else n for n, c in zip(names, counts, strict=True)]
+    ax.set_yticks(positions, [f"{t}\nLATE" if n in late else t for t, n in zip(ticks, names, strict=True)])
     ax.set_xlabel(
         "controller step time (ms), log scale; box: quartiles, whiskers: p1-p99; text: median / max"
     )

@@ -5,6 +5,11 @@ colour blindness), assigned explicitly: no two of the controllers the studies
 compare share a colour. Baselines (pure pursuit and the model-based MPCs) are
 drawn broken (dashed, dash-dotted, dotted), the learned controllers solid, and
 the RKMPC a little wider, so a figure also reads in black and white.
+
+Lines that run close together hide each other, so each style has a drawing order (``zorder``):
+the other baselines first, the LMPC over them (the nonlinear MPC's path lies on the LMPC's on
+the built-in track and hid it), the learned controllers over the LMPC, the RKMPC on top;
+``lmpc-id``, which stays close to the LMPC, is drawn wider than the other learned baselines.
 """
 
 from __future__ import annotations
@@ -26,11 +31,12 @@ _GREY = "#7F7F7F"  # the palette's yellow is too pale on white; pure pursuit is 
 
 @dataclass(frozen=True)
 class ControllerStyle:
-    """Colour (hex), line style and line width (points) of one controller's lines."""
+    """Colour (hex), line style, line width (points) and drawing order of one controller's lines."""
 
     color: str
     linestyle: str
     linewidth: float
+    zorder: float = 2.0
 
 
 #: The controllers learned from data (drawn solid); every other known one is a baseline.
@@ -38,26 +44,26 @@ LEARNED: frozenset[str] = frozenset({"kmpc", "rkmpc", "rkmpc-paper", "lmpc-id", 
 
 #: Fixed style per controller name.
 CONTROLLER_STYLE: dict[str, ControllerStyle] = {
-    "pp": ControllerStyle(_GREY, ":", 1.3),
-    "lmpc": ControllerStyle(_BLUE, "--", 1.3),
-    "nmpc": ControllerStyle(_ORANGE, "-.", 1.2),
-    "nmpc-dynamic": ControllerStyle(_BLACK, "-.", 1.2),
-    "nmpc-acados": ControllerStyle(_ORANGE, ":", 1.2),
-    "nmpc-acados-dynamic": ControllerStyle(_BLACK, ":", 1.2),
-    "lmpc-id": ControllerStyle(_SKY_BLUE, "-", 1.1),
-    "nmpc-id": ControllerStyle(_BLACK, "-", 1.1),
-    "kmpc": ControllerStyle(_GREEN, "-", 1.1),
-    "rkmpc-paper": ControllerStyle(_PURPLE, "-", 1.1),
-    "rkmpc": ControllerStyle(_VERMILLION, "-", 1.8),
+    "pp": ControllerStyle(_GREY, ":", 1.3, 2.0),
+    "nmpc": ControllerStyle(_ORANGE, "-.", 1.2, 2.1),
+    "nmpc-dynamic": ControllerStyle(_BLACK, "-.", 1.2, 2.1),
+    "nmpc-acados": ControllerStyle(_ORANGE, ":", 1.2, 2.1),
+    "nmpc-acados-dynamic": ControllerStyle(_BLACK, ":", 1.2, 2.1),
+    "lmpc": ControllerStyle(_BLUE, "--", 1.4, 2.4),
+    "kmpc": ControllerStyle(_GREEN, "-", 1.1, 2.5),
+    "rkmpc-paper": ControllerStyle(_PURPLE, "-", 1.1, 2.5),
+    "nmpc-id": ControllerStyle(_BLACK, "-", 1.1, 2.2),
+    "lmpc-id": ControllerStyle(_SKY_BLUE, "-", 1.6, 2.6),
+    "rkmpc": ControllerStyle(_VERMILLION, "-", 1.8, 3.0),
 }
 
 
 def controller_style(label: str) -> dict[str, object]:
-    """Matplotlib ``color``, ``ls`` and ``lw`` of a controller label (``name`` or ``name+fault``).
+    """Matplotlib ``color``, ``ls``, ``lw`` and ``zorder`` of a controller label (``name`` or ``name+fault``).
 
     An unknown controller gets a solid line and no colour (the axes' colour cycle picks one).
     """
     style = CONTROLLER_STYLE.get(label.split("+")[0])
     if style is None:
         return {"lw": 1.1, "ls": "-"}
-    return {"color": style.color, "ls": style.linestyle, "lw": style.linewidth}
+    return {"color": style.color, "ls": style.linestyle, "lw": style.linewidth, "zorder": style.zorder}

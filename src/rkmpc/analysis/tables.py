@@ -28,6 +28,35 @@ TABLE_COLUMNS: tuple[tuple[str, str, str], ...] = (
 
 _CHANGE_KEYS = ("lateral_error_mean_m", "heading_error_mean_rad", "steer_rate_mean_rad_s")
 
+#: A completed lap whose peak lateral acceleration is beyond this multiple of the pace's lateral
+#: limit slid somewhere (at the finish, often): its cell is flagged with :data:`SLIDE_MARK`. The
+#: clean laps of PP and the LMPC peak at up to 1.7 times the limit on every shared track
+#: (``docs/baselines.md``: the peak is of speed x yaw rate, transients included).
+SLIDE_FACTOR = 2.0
+SLIDE_MARK = " !"
+
+
+def slid(metrics: Mapping[str, Any], lateral_limit: float | None) -> bool:
+    """Whether a completed lap's peak lateral acceleration is beyond :data:`SLIDE_FACTOR` times the limit."""
+    peak = metrics["lateral_accel_max_m_s2"]
+    return bool(
+        lateral_limit is not None
+        and metrics["completed"]
+        and peak is not None
+        and peak > SLIDE_FACTOR * lateral_limit
+    )
+
+
+def slide_note(results: Mapping[str, Mapping[str, Any]], lateral_limit: float | None) -> str | None:
+    """The line under a table with flagged peaks: which controllers, and what the flag means."""
+    flagged = [name for name, metrics in results.items() if slid(metrics, lateral_limit)]
+    if not flagged:
+        return None
+    return (
+        f"{SLIDE_MARK.strip()} peak a_y beyond {SLIDE_FACTOR:g} x the pace's lateral limit "
+        f"({lateral_limit:g} m/s²) on a completed lap ({', '.join(flagged)}): the car slid"
+    )
+
 
 def format_cell(value: Any, fmt: str) -> str:
     """Format one metric; None shows as a dash."""
@@ -44,12 +73,22 @@ def change_vs(metrics: Mapping[str, Any], baseline: Mapping[str, Any], key: str)
     return "-" if change is None else f"{change:+.1f}%"
 
 
-def table_rows(results: Mapping[str, Mapping[str, Any]], baseline: str | None = "lmpc") -> list[list[str]]:
-    """Rows (controller, cells..., changes vs baseline) of the comparison table."""
+def table_rows(
+    results: Mapping[str, Mapping[str, Any]],
+    baseline: str | None = "lmpc",
+    lateral_limit: float | None = None,
+) -> list[list[str]]:
+    """Rows (controller, cells..., changes vs baseline) of the comparison table.
+
+    With the pace's ``lateral_limit`` (m/s^2), a completed lap's peak lateral acceleration beyond
+    :data:`SLIDE_FACTOR` times it is flagged (:func:`slid`).
+    """
     rows = []
     base = results[baseline] if baseline and baseline in results else None
     for name, metrics in results.items():
         row = [name] + [format_cell(metrics[key], fmt) for key, _, fmt in TABLE_COLUMNS]
+        if slid(metrics, lateral_limit):
+            row[len(TABLE_COLUMNS)] += SLIDE_MARK
         if base is not None:
             row.append(" / ".join(change_vs(metrics, base, k) for k in _CHANGE_KEYS))
         rows.append(row)
@@ -64,10 +103,18 @@ def table_header(with_change: bool) -> list[str]:
     return header
 
 
-def markdown_table(results: Mapping[str, Mapping[str, Any]], baseline: str | None = "lmpc") -> str:
-    """The comparison table in Markdown."""
+def markdown_table(
+    results: Mapping[str, Mapping[str, Any]],
+    baseline: str | None = "lmpc",
+    lateral_limit: float | None = None,
+) -> str:
+    """The comparison table in Markdown (slides flagged and said below it, :func:`table_rows`)."""
     with_change = bool(baseline) and baseline in results
-    return markdown(table_header(with_change), table_rows(results, baseline if with_change else None))
+    text = markdown(
+        table_header(with_change), table_rows(results, baseline if with_change else None, lateral_limit)
+    )
+    note = slide_note(results, lateral_limit)
+    return text if note is None else f"{text}\n{note}\n"
 
 
 def fault_table(
@@ -144,21 +191,30 @@ def fmt_stats(s: Stats | None, spec: str = ".4f", pct: bool = False) -> str:
     return text
 
 
-def rich_table(results: Mapping[str, Mapping[str, Any]], title: str, baseline: str | None = "lmpc") -> Any:
+def rich_table(
+    results: Mapping[str, Mapping[str, Any]],
+    title: str,
+    baseline: str | None = "lmpc",
+    lateral_limit: float | None = None,
+) -> Any:
     """The comparison table as a :class:`rich.table.Table` (changes against ``baseline`` when present)."""
     from rich.table import Table
 
     with_change = baseline is not None and baseline in results and len(results) > 1
-    table = Table(title=title)
+    table = Table(title=title, caption=slide_note(results, lateral_limit))
     for col in table_header(with_change):
         table.add_column(col)
-    for row in table_rows(results, baseline if with_change else None):
+    for row in table_rows(results, baseline if with_change else None, lateral_limit):
         table.add_row(*row)
     return table
 
 
 def rich_tables_fitting(
-    results: Mapping[str, Mapping[str, Any]], title: str, width: int, baseline: str | None = "lmpc"
+    results: Mapping[str, Mapping[str, Any]],
+    title: str,
+    width: int,
+    baseline: str | None = "lmpc",
+    lateral_limit: float | None = None,
 ) -> list[Any]:
     """The comparison as :class:`rich.table.Table` objects that fit ``width`` columns.
 
@@ -169,12 +225,13 @@ def rich_tables_fitting(
     from rich.console import Console
     from rich.table import Table
 
-    wide = rich_table(results, title, baseline)
+    wide = rich_table(results, title, baseline, lateral_limit)
     if Console(width=10_000).measure(wide).maximum <= width:
         return [wide]
     with_change = baseline is not None and baseline in results and len(results) > 1
     header = table_header(with_change)
-    columns = {row[0]: row[1:] for row in table_rows(results, baseline if with_change else None)}
+    rows = table_rows(results, baseline if with_change else None, lateral_limit)
+    columns = {row[0]: row[1:] for row in rows}
     if with_change:  # the changes against the baseline, one per row: narrow columns
         header = [*header[:-1], *(f"vs {baseline}: {what}" for what in ("lat", "head", "rate"))]
         columns = {name: [*cells[:-1], *cells[-1].split(" / ")] for name, cells in columns.items()}
@@ -192,4 +249,5 @@ def rich_tables_fitting(
         for i, metric in enumerate(header[1:]):
             table.add_row(metric, *(columns[name][i] for name in group))
         tables.append(table)
+    tables[-1].caption = slide_note(results, lateral_limit)
     return tables

@@ -11,7 +11,7 @@ import argparse
 import contextlib
 import sys
 import warnings
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from importlib.metadata import version as package_version
 from typing import Any
 
@@ -23,7 +23,7 @@ from rkmpc.cli.learn_pace import add_learn_pace_parser, cmd_learn_pace
 from rkmpc.cli.ros import ROS_COMMANDS, add_ros_parsers
 from rkmpc.cli.study import add_study_parser, cmd_study
 from rkmpc.cli.train import add_train_parser, cmd_train
-from rkmpc.core.errors import IdentificationWarning, RkmpcError
+from rkmpc.core.errors import ContractError, IdentificationWarning, RkmpcError
 from rkmpc.core.interrupt import interruptible
 
 _DESCRIPTION = (
@@ -70,7 +70,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"rkmpc {package_version('rkmpc')}")
     sub = parser.add_subparsers(dest="command", required=True)
     run = sub.add_parser("run", help="drive one controller around a track")
-    run.add_argument("--controller", required=True, choices=sorted(CONTROLLERS))
+    run.add_argument(
+        "--controller", required=True, choices=sorted(CONTROLLERS), help="the controller to drive"
+    )
     add_scenario_args(run)
     add_learning_args(run)
     compare = sub.add_parser(
@@ -118,10 +120,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         # comparison's messages and results.json), not Python warnings on stderr besides.
         # The ROS commands handle SIGINT themselves (rclpy, the car-loop's processes).
         catch = contextlib.nullcontext() if args.command in ROS_COMMANDS else interruptible()
-        with warnings.catch_warnings(), catch:
+        with warnings.catch_warnings(), catch, _one_line_warnings():
             warnings.simplefilter("ignore", IdentificationWarning)
             return commands[args.command](args)
-    except (RkmpcError, ValueError, OSError) as exc:
+    except ContractError as exc:  # the flag, not the library's argument, is the way out here
+        print(f"rkmpc: error: {exc.for_command_line()}", file=sys.stderr)
+        return 2
+    except (RkmpcError, ValueError, OSError, ImportError) as exc:
+        # An ImportError is an optional package not installed (a backend, torch, rosbags): its
+        # message says which and how to install it.
         print(f"rkmpc: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
@@ -129,6 +136,21 @@ def main(argv: Sequence[str] | None = None) -> int:
         # complete (rkmpc.core.io): nothing to clean up, nothing to say but this.
         print("rkmpc: interrupted", file=sys.stderr)
         return 130
+
+
+@contextlib.contextmanager
+def _one_line_warnings() -> Iterator[None]:
+    """Warnings shown as ``rkmpc: warning: MESSAGE``, one line without the source (as errors are)."""
+    before = warnings.formatwarning
+
+    def one_line(message: Warning | str, category: type[Warning], *_: Any, **__: Any) -> str:
+        return f"rkmpc: warning: {message}\n"
+
+    warnings.formatwarning = one_line
+    try:
+        yield
+    finally:
+        warnings.formatwarning = before
 
 
 def _cmd_tracks(_: argparse.Namespace) -> int:

@@ -98,6 +98,7 @@ def cmd_collect_from_bag(args: argparse.Namespace) -> int:
     """Import the bag of ``--from-bag`` and save the data set to ``--out``."""
     from rkmpc.cli.common import car_config
     from rkmpc.learning.data.bags import BagImportConfig, import_bag
+    from rkmpc.learning.data.bags.stream import SEGMENT_S
 
     car = car_config(args)
     config = BagImportConfig(
@@ -124,6 +125,12 @@ def cmd_collect_from_bag(args: argparse.Namespace) -> int:
         print(f"rkmpc: error: {exc}", file=sys.stderr)
         return 2
     data.save(args.out)
+    if data.metadata["recording"] == "unfinished":
+        print(
+            f"warning: {args.from_bag} is a recording that never ended (its recorder was killed?): "
+            f"read up to its last closed segment, the last {SEGMENT_S:g} s at most are missing",
+            file=sys.stderr,
+        )
     episodes = len(set(data.episode.tolist()))
     print(f"{len(data)} transitions in {episodes} episode(s) from {args.from_bag} -> {args.out}")
     return 0

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import warnings
 from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -14,7 +15,10 @@ if TYPE_CHECKING:
 
 __all__ = [
     "CACHE_HELP",
+    "CONTROLLERS_HELP",
+    "SCALE_HELP",
     "VEHICLES",
+    "PaceWarning",
     "add_config_args",
     "add_force_arg",
     "add_ladder_args",
@@ -31,7 +35,17 @@ __all__ = [
 ]
 
 VEHICLES = ["f1tenth", "fullsize"]
-CACHE_HELP = "trained-model cache (default: $RKMPC_CACHE_DIR, else ~/.cache/rkmpc)"
+
+
+class PaceWarning(UserWarning):
+    """The pace asked for is beyond what the car can do (:meth:`rkmpc.config.car.CarConfig.check_limits`)."""
+
+
+CACHE_HELP = (
+    "trained-model cache (default: $RKMPC_CACHE_DIR, else $XDG_CACHE_HOME/rkmpc, else ~/.cache/rkmpc)"
+)
+SCALE_HELP = "scale of track files (default: the car's, 0.1 for f1tenth, 1 for fullsize)"
+CONTROLLERS_HELP = "comma-separated controller names"
 
 
 def at_least(low: int) -> Callable[[str], int]:
@@ -157,7 +171,10 @@ def car_config(args: argparse.Namespace) -> CarConfig:
     if car is not None:
         config = config.with_zoo_car(car)
     config = config.with_sensors(getattr(args, "sensors", None))
-    return config.at_pace(getattr(args, "lateral_accel", None), getattr(args, "max_speed", None))
+    config = config.at_pace(getattr(args, "lateral_accel", None), getattr(args, "max_speed", None))
+    for doubt in config.check_limits():
+        warnings.warn(doubt, PaceWarning, stacklevel=2)
+    return config
 
 
 def _pace(text: str, what: str) -> tuple[float, float]:
@@ -225,9 +242,7 @@ def add_scenario_args(
     parser.add_argument(
         "--raceline", default=None, help="TUM race-line CSV to track instead of the centre line"
     )
-    parser.add_argument(
-        "--scale", type=float, default=None, help="scale of track files (default: the car's, 0.1 for f1tenth)"
-    )
+    parser.add_argument("--scale", type=float, default=None, help=SCALE_HELP)
     add_config_args(parser)
     parser.add_argument(
         "--car", default=None, help="drive a car of the zoo (gym, overshoot, ..., random-<seed>) instead"

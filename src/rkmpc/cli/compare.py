@@ -53,7 +53,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
     from rkmpc.analysis.tables import fault_table, rich_tables_fitting
     from rkmpc.core.io import output_folder
-    from rkmpc.experiments.report import title_of
+    from rkmpc.experiments.report import lateral_limit_of, title_of
 
     car = car_config(args)
     single = args.command == "run"
@@ -78,7 +78,8 @@ def cmd_compare(args: argparse.Namespace) -> int:
     wide = Console(width=None if Console().is_terminal else 100)
     for profile, result in zip(profiles, results, strict=True):
         title = title_of(result) + ("" if profile is None else f", {profile} sensors")
-        for table in rich_tables_fitting(result.metrics(), title, wide.width):
+        limit = lateral_limit_of(result)
+        for table in rich_tables_fitting(result.metrics(), title, wide.width, lateral_limit=limit):
             wide.print(table)
         if result.fault is not None:
             faulted = {name: run.metrics for name, run in result.fault.runs.items()}
@@ -115,7 +116,8 @@ def _drive(config: Any, out: Path, single: bool, console: Any) -> Any:
 
     def on_run(label: str, result: Any) -> None:
         result.log.to_csv(out / ("log.csv" if single and "+" not in label else f"log_{label}.csv"))
-        console.print(f"  {label}: {result.outcome}, {len(result.log)} steps")
+        why = f" ({result.failure})" if result.failure else ""
+        console.print(f"  {label}: {result.outcome}, {len(result.log)} steps{why}")
         warning = degraded(label, result)
         if warning is not None:
             console.print(f"[yellow]{warning}[/yellow]")

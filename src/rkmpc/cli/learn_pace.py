@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING, Any
 
 from rkmpc.cli.common import (
     CACHE_HELP,
+    SCALE_HELP,
     add_config_args,
     add_force_arg,
     add_ladder_args,
@@ -29,8 +30,13 @@ def add_learn_pace_parser(sub: Any) -> None:
         "and drive a pace step faster, while the laps stay clean",
     )
     parser.add_argument("--track", default="builtin", help="built-in track name or TUM centre-line CSV")
-    parser.add_argument("--controller", default="rkmpc", choices=["rkmpc", "rkmpc-paper", "lmpc-id"])
-    parser.add_argument("--scale", type=float, default=None)
+    parser.add_argument(
+        "--controller",
+        default="rkmpc",
+        choices=["rkmpc", "rkmpc-paper", "lmpc-id"],
+        help="the learned controller that climbs the ladder",
+    )
+    parser.add_argument("--scale", type=float, default=None, help=SCALE_HELP)
     add_config_args(parser, pace=False)  # the pace is the ladder's, from the car's own
     add_ladder_args(parser)
     parser.add_argument(

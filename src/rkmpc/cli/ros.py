@@ -77,11 +77,11 @@ def add_ros_parsers(sub: Any) -> None:
     sim.add_argument(
         "--standstill", action="store_true", help="start at rest instead of at the reference speed"
     )
-    sim.add_argument("--seed", type=at_least(0), default=0)
-    sim.add_argument("--odometry-topic", default="/ego_racecar/odom")
-    sim.add_argument("--drive-topic", default="/drive")
+    sim.add_argument("--seed", type=at_least(0), default=0, help="seed of the simulated car's noise")
+    sim.add_argument("--odometry-topic", default="/ego_racecar/odom", help="the odometry it publishes")
+    sim.add_argument("--drive-topic", default="/drive", help="the commands it takes")
     sim.add_argument("--steering-topic", default="", help="publish the true wheel angle here (Float64, rad)")
-    sim.add_argument("--status-topic", default="/rkmpc/sim/status")
+    sim.add_argument("--status-topic", default="/rkmpc/sim/status", help="where it says how the run goes")
     sim.add_argument("--answer-timeout", type=float, default=30.0, help="lock-step: give up after (s)")
     sim.add_argument(
         "--startup-timeout", type=float, default=None, help="wait for the first command at most (s)"

@@ -10,6 +10,8 @@ from typing import TYPE_CHECKING, Any
 
 from rkmpc.cli.common import (
     CACHE_HELP,
+    CONTROLLERS_HELP,
+    SCALE_HELP,
     add_config_args,
     add_ladder_args,
     add_parallel_args,
@@ -60,9 +62,9 @@ def add_study_parser(sub: Any) -> None:
         default="builtin",
         help="comma-separated built-in names, centre-line CSV files or folders of them",
     )
-    tracks.add_argument("--controllers", default=",".join(ALL_CONTROLLERS))
+    tracks.add_argument("--controllers", default=",".join(ALL_CONTROLLERS), help=CONTROLLERS_HELP)
     tracks.add_argument("--seeds", default="0", help="comma-separated seeds; one job per track and seed")
-    tracks.add_argument("--scale", type=float, default=None)
+    tracks.add_argument("--scale", type=float, default=None, help=SCALE_HELP)
     add_config_args(tracks)
     tracks.add_argument(
         "--kmpc-samples", type=at_least(1000), default=None, help="else the --config file's (default: 50000)"
@@ -81,11 +83,9 @@ def add_study_parser(sub: Any) -> None:
     )
     cars.add_argument("--cars", default=",".join(DEFAULT_CARS), help="zoo variants (or random-<seed>)")
     cars.add_argument("--tracks", default="builtin", help="as for `study tracks`")
-    cars.add_argument("--controllers", default=",".join(CARS_CONTROLLERS))
-    cars.add_argument(
-        "--scale", type=float, default=None, help="scale of track files (default: the car's, 0.1 for f1tenth)"
-    )
-    cars.add_argument("--seeds", default="0")
+    cars.add_argument("--controllers", default=",".join(CARS_CONTROLLERS), help=CONTROLLERS_HELP)
+    cars.add_argument("--scale", type=float, default=None, help=SCALE_HELP)
+    cars.add_argument("--seeds", default="0", help="comma-separated seeds; one job per car, track and seed")
     add_config_args(cars)
     cars.add_argument(
         "--kmpc-samples", type=at_least(1000), default=None, help="else the --config file's (default: 50000)"
@@ -97,12 +97,12 @@ def add_study_parser(sub: Any) -> None:
     add_parallel_args(cars)
     cars.add_argument("--journal", type=Path, default=None, help=JOURNAL_HELP)
     data = kinds.add_parser("data", help="RKMPC against KMPC as the number of training samples grows")
-    data.add_argument("--track", default="builtin")
-    data.add_argument("--scale", type=float, default=None)
+    data.add_argument("--track", default="builtin", help="built-in track name or TUM centre-line CSV")
+    data.add_argument("--scale", type=float, default=None, help=SCALE_HELP)
     add_config_args(data)  # the seeds are --seeds, the data sizes --sizes
     data.add_argument("--sizes", default=",".join(str(n) for n in DEFAULT_SIZES), help="training samples")
-    data.add_argument("--seeds", default="0,1,2")
-    data.add_argument("--controllers", default="rkmpc,kmpc")
+    data.add_argument("--seeds", default="0,1,2", help="comma-separated seeds; one job per size and seed")
+    data.add_argument("--controllers", default="rkmpc,kmpc", help=CONTROLLERS_HELP)
     data.add_argument(
         "--epochs",
         type=at_least(1),
@@ -114,9 +114,14 @@ def add_study_parser(sub: Any) -> None:
         "pace", help="raise each controller's pace up a ladder until its lap is no longer clean"
     )
     pace.add_argument("--tracks", default="builtin", help="as for `study tracks`")
-    pace.add_argument("--controllers", default=",".join(PACE_CONTROLLERS))
+    pace.add_argument(
+        "--controllers",
+        default=",".join(PACE_CONTROLLERS),
+        help=f"{CONTROLLERS_HELP} (default: {','.join(PACE_CONTROLLERS)}; nmpc-dynamic's climb takes "
+        "13-15 minutes per real track, a few on the built-in one: leave it out for a quick look)",
+    )
     pace.add_argument("--seed", type=at_least(0), default=None, help="else the --config file's (default: 0)")
-    pace.add_argument("--scale", type=float, default=None)
+    pace.add_argument("--scale", type=float, default=None, help=SCALE_HELP)
     add_config_args(pace, pace=False)  # the pace is the ladder's, from the car's own
     add_ladder_args(pace)
     pace.add_argument(
@@ -249,24 +254,32 @@ def run_study_command(args: argparse.Namespace, study: Study[Any], stem: str) ->
     from rich.console import Console
 
     from rkmpc.analysis.plots import save_figure
-    from rkmpc.core.io import check_output_folder, output_folder, write_json_atomic, write_text_atomic
+    from rkmpc.core.io import (
+        check_output_folder,
+        claim_output,
+        output_folder,
+        write_json_atomic,
+        write_text_atomic,
+    )
     from rkmpc.experiments.parallel import limit_threads
     from rkmpc.experiments.study import Parallel, run_study
 
     markers = (f"{stem}.json",)
-    # The folder is checked before hours of runs, and made when they are done.
-    check_output_folder(args.out, force=args.force, markers=markers)
-    parallel = Parallel(n_jobs=args.jobs, backend=args.backend, address=args.address)
-    limit_threads()  # this process trains too (the shared models, or jobs when --jobs 1)
-    console = Console(stderr=True)
-    journal = getattr(args, "journal", None)
-    result = run_study(
-        study, parallel=parallel, journal=journal, progress=study_progress(console), say=console.print
-    )
-    text = result.to_markdown()
-    with output_folder(args.out, force=args.force, markers=markers) as out:
-        write_json_atomic(out / f"{stem}.json", result.to_json())
-        write_text_atomic(out / f"{stem}.md", text)
+    # The folder is claimed and checked before hours of runs (a second study into it is refused at
+    # once), and made when they are done.
+    with claim_output(args.out):
+        check_output_folder(args.out, force=args.force, markers=markers)
+        parallel = Parallel(n_jobs=args.jobs, backend=args.backend, address=args.address)
+        limit_threads()  # this process trains too (the shared models, or jobs when --jobs 1)
+        console = Console(stderr=True)
+        journal = getattr(args, "journal", None)
+        result = run_study(
+            study, parallel=parallel, journal=journal, progress=study_progress(console), say=console.print
+        )
+        text = result.to_markdown()
+        with output_folder(args.out, force=args.force, markers=markers) as out:
+            write_json_atomic(out / f"{stem}.json", result.to_json())
+            write_text_atomic(out / f"{stem}.md", text)
     print(text)
     # The figure last, into the finished folder: a figure that fails must not lose hours of runs.
     figure = result.figure()

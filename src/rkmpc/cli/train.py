@@ -18,7 +18,12 @@ def add_train_parser(sub: Any) -> None:
     train.add_argument(
         "--data", required=True, type=Path, help="the data set (.npz, from rkmpc collect) to learn from"
     )
-    train.add_argument("--kind", required=True, choices=model_kinds())
+    train.add_argument(
+        "--kind",
+        required=True,
+        choices=model_kinds(),
+        help="the model: residual (rkmpc), paper (rkmpc-paper), koopman (kmpc), identified (lmpc-id)",
+    )
     add_config_args(train, pace=False)  # the car the model is for
     train.add_argument("--dt", type=float, default=0.05, help="control period the model is for (s)")
     add_mismatch_arg(train, "train on data recorded with another car or period")

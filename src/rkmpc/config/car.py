@@ -12,6 +12,7 @@ controllers learn (:class:`TrainingSettings`) and how ``rkmpc node`` talks to th
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass, field, replace
 from typing import Any
 
@@ -27,7 +28,22 @@ from rkmpc.vehicle.registry import PLANTS
 from rkmpc.vehicle.sensors import SensorProfile, get_sensor_profile
 from rkmpc.vehicle.zoo import get_car
 
-__all__ = ["CarConfig", "PlantSettings", "TrainingSettings"]
+__all__ = ["CarConfig", "PlantSettings", "TrainingSettings", "tyre_grip"]
+
+
+def tyre_grip(vehicle: VehicleParams) -> float:
+    """The largest steady lateral acceleration the car's tyres hold (m/s^2), about.
+
+    ``mu g`` times the smaller axle's peak of the magic formula per unit load: ``D`` for a shape
+    factor ``C >= 1``, ``D sin(C pi / 2)`` below (the formula's limit at large slip). About
+    11.3 m/s^2 for the 1:10 car, 10.3 for the full-size one; load transfer lowers it further.
+    """
+
+    def peak(C: float, D: float) -> float:
+        return D if C >= 1.0 else D * math.sin(0.5 * math.pi * C)
+
+    axles = (vehicle.tyre_front, vehicle.tyre_rear)
+    return vehicle.mu * vehicle.gravity * min(peak(t.C, t.D) for t in axles)
 
 
 @dataclass(frozen=True)
@@ -152,6 +168,30 @@ class CarConfig:
                 )
         if not is_positive_number(self.file_scale):
             raise ParameterError(f"CarConfig.file_scale must be finite and > 0, got {self.file_scale!r}")
+        top = self.vehicle.drive.max_speed
+        if self.limits.max_speed > top:
+            raise ParameterError(
+                f"the pace's top speed ([limits] max_speed or --max-speed: {self.limits.max_speed:g} m/s) is "
+                f"beyond what the car's drive reaches ([vehicle.drive] max_speed: {top:g} m/s): the "
+                "reference would ask for speeds the car cannot reach and it would leave the track; "
+                "lower the pace or give the car's drive its true top speed"
+            )
+
+    def check_limits(self) -> list[str]:
+        """What is doubtful in this car's pace, one line each (empty when nothing is).
+
+        A lateral-acceleration limit beyond the tyres' grip (:func:`tyre_grip`): the speed profile
+        asks for corners the car cannot take, and it slides off the track. Allowed (the pace
+        study climbs past the grip on purpose); a command line says it.
+        """
+        grip = tyre_grip(self.vehicle)
+        if self.limits.lateral_accel <= grip:
+            return []
+        return [
+            "the pace's lateral acceleration ([limits] lateral_accel or --lateral-accel: "
+            f"{self.limits.lateral_accel:g} m/s^2) is beyond the tyres' grip, about {grip:.1f} m/s^2 "
+            "for this car: expect it to slide off the track in corners"
+        ]
 
     # ------------------------------------------------------------------ variants
     def at_pace(self, lateral_accel: float | None = None, max_speed: float | None = None) -> CarConfig:

@@ -46,7 +46,6 @@ from __future__ import annotations
 
 import functools
 import hashlib
-import stat
 import tomllib
 from collections.abc import Mapping
 from dataclasses import fields, replace
@@ -59,6 +58,7 @@ from rkmpc.config.ros import RosSettings
 from rkmpc.control.settings import SECTIONS as CONTROLLER_SECTIONS
 from rkmpc.control.settings import ControllerSettings
 from rkmpc.core.errors import InputFileError, ParameterError
+from rkmpc.core.reading import check_regular_file
 from rkmpc.core.registry import Registry
 from rkmpc.core.settings import build_dataclass, check_keys, check_value
 from rkmpc.core.validation import is_positive_number
@@ -83,16 +83,9 @@ def read_settings_file(path: Path) -> tuple[dict[str, Any], bytes]:
     Only a regular file of at most :data:`MAX_FILE_BYTES` is read (a FIFO or a device would block
     or never end).
     """
-    try:
-        info = path.stat()
-    except FileNotFoundError:
-        raise InputFileError(path, "file not found") from None
-    except OSError as exc:
-        raise InputFileError(path, f"cannot read the file: {exc}") from None
-    if not stat.S_ISREG(info.st_mode):
-        raise InputFileError(path, "not a regular file (a folder, a FIFO or a device): give a file")
-    if info.st_size > MAX_FILE_BYTES:
-        raise InputFileError(path, f"{info.st_size} bytes; a settings file is at most {MAX_FILE_BYTES}")
+    size = check_regular_file(path)
+    if size > MAX_FILE_BYTES:
+        raise InputFileError(path, f"{size} bytes; a settings file is at most {MAX_FILE_BYTES}")
     try:
         raw = path.read_bytes()[: MAX_FILE_BYTES + 1]
         text = raw.decode("utf-8")

@@ -76,6 +76,10 @@ def raise_if_interrupted(exc: BaseException) -> None:
         current = current.__cause__ or current.__context__
 
 
+class MissingPackageError(RkmpcError, ImportError):
+    """An optional package a feature needs is not installed (the message says how to install it)."""
+
+
 class ParameterError(RkmpcError, ValueError):
     """A parameter set failed validation (names the parameter and the problem)."""
 
@@ -93,12 +97,24 @@ class ContractError(RkmpcError, ValueError):
         The file (or object) at fault.
     problem : str
         Every field that differs, with both values.
+    mismatch : bool
+        Whether using it anyway can be asked for: the message then ends with how, for a library
+        user (``allow_mismatch=True``); the command line says its flag instead
+        (:meth:`for_command_line`).
     """
 
-    def __init__(self, source: str, problem: str) -> None:
+    LIBRARY_HINT = "pass allow_mismatch=True to use it anyway"
+    COMMAND_LINE_HINT = "give --allow-mismatch to use it anyway"
+
+    def __init__(self, source: str, problem: str, *, mismatch: bool = False) -> None:
         self.source = source
         self.problem = problem
-        super().__init__(problem)
+        self.mismatch = mismatch
+        super().__init__(f"{problem} ({self.LIBRARY_HINT})" if mismatch else problem)
+
+    def for_command_line(self) -> str:
+        """The message with the command line's flag (``--allow-mismatch``) as the way out."""
+        return f"{self.problem} ({self.COMMAND_LINE_HINT})" if self.mismatch else self.problem
 
 
 class ContractWarning(UserWarning):

@@ -17,12 +17,18 @@ a temporary name and renamed, so an interrupted write leaves no half entry.
 Entries are JSON: the job's outcome with its value encoded by the study (``encode``) and decoded
 when read (``decode``); nothing in a journal can run code. Journals of format 1 held pickles: they
 are refused, never unpickled.
+
+A journal that cannot be written (a full disk, a folder gone read-only) never stops the study it
+keeps: the first failure is said once (``warn``, naming the folder and the reason), every entry not
+kept is counted (:attr:`JobJournal.unkept`), and the study's results are whole; only a later
+resumed run would run those jobs again.
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
+import warnings
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -32,7 +38,7 @@ from rkmpc.core.errors import OutputError
 from rkmpc.core.io import write_json_atomic
 from rkmpc.core.jsonutil import to_json_ready
 
-__all__ = ["JobJournal", "JournalError", "canonical_json"]
+__all__ = ["JobJournal", "JournalError", "JournalWarning", "canonical_json"]
 
 #: Version of the journal's layout (``journal.json`` and the entries); 1 held pickles.
 JOURNAL_FORMAT = 2
@@ -40,6 +46,14 @@ JOURNAL_FORMAT = 2
 
 class JournalError(OutputError):
     """A journal folder cannot be used: other settings, an unreadable entry, a file in the way."""
+
+
+class JournalWarning(UserWarning):
+    """A journal could not keep a finished job (its study goes on, its result whole)."""
+
+
+def _warn(message: str) -> None:
+    warnings.warn(message, JournalWarning, stacklevel=3)
 
 
 def canonical_json(value: Any) -> str:
@@ -75,6 +89,9 @@ class JobJournal:
     outcome : callable
         Makes an outcome from its fields (:class:`rkmpc.experiments.parallel.JobOutcome`; given by
         the caller, this module sits below the one that defines it).
+    warn : callable or None
+        Told once, in one line, when the journal first fails to keep a job (None: a
+        :class:`JournalWarning`).
     """
 
     folder: Path
@@ -82,10 +99,37 @@ class JobJournal:
     encode: Callable[[Any], Any] = field(default=to_json_ready, compare=False)
     decode: Callable[[Any], Any] = field(default=lambda data: data, compare=False)
     outcome: Callable[..., Any] = field(default=dict, compare=False)
+    warn: Callable[[str], None] | None = field(default=None, compare=False)
+    _unkept: list[str] = field(default_factory=list, init=False, compare=False, repr=False)
+    _failure: list[str] = field(default_factory=list, init=False, compare=False, repr=False)
+    _headless: list[bool] = field(default_factory=list, init=False, compare=False, repr=False)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "folder", Path(self.folder))
         object.__setattr__(self, "settings", json.loads(canonical_json(dict(self.settings))))
+
+    @property
+    def unkept(self) -> int:
+        """Finished jobs this journal could not keep (a write failed: a full disk, ...)."""
+        return len(self._unkept)
+
+    @property
+    def failure(self) -> str | None:
+        """Why the journal could not keep a job (the first error), or None."""
+        return self._failure[0] if self._failure else None
+
+    def _failed(self, key: str | None, exc: OSError) -> None:
+        """Count a job's entry that could not be written (``key``; None: the header); say the first."""
+        if key is not None:
+            self._unkept.append(key)
+        if self._failure:
+            return
+        reason = exc.strerror or str(exc)
+        self._failure.append(reason)
+        (self.warn if self.warn is not None else _warn)(
+            f"journal {self.folder}: cannot keep finished jobs ({reason}); the study goes on and its "
+            "results are whole, but a resumed run would run the jobs not kept again"
+        )
 
     @property
     def _header(self) -> Path:
@@ -104,7 +148,11 @@ class JobJournal:
         if not self._header.is_file():
             if self.folder.is_dir() and any(self.folder.iterdir()):
                 raise JournalError(f"journal {self.folder} is not empty and holds no journal.json")
-            write_json_atomic(self._header, {"format": JOURNAL_FORMAT, "settings": self.settings})
+            try:
+                write_json_atomic(self._header, {"format": JOURNAL_FORMAT, "settings": self.settings})
+            except OSError as exc:
+                self._headless.append(True)
+                self._failed(None, exc)
             return self
         try:
             header = json.loads(self._header.read_text())
@@ -159,8 +207,16 @@ class JobJournal:
             raise JournalError(f"journal entry {path} holds job {stored_key!r}, not {key!r}")
         return outcome
 
-    def save(self, key: str, outcome: Any) -> None:
-        """Store a finished job's outcome under ``key``, its value encoded as JSON."""
+    def save(self, key: str, outcome: Any) -> bool:
+        """Store a finished job's outcome under ``key``, its value encoded as JSON; whether it was kept.
+
+        A write that fails (:class:`OSError`: a full disk, ...) is counted (:attr:`unkept`), the
+        first one said (``warn``), and never raised: the study goes on. Once the journal's own
+        ``journal.json`` could not be written, no entry is written (it could never be resumed).
+        """
+        if self._headless:
+            self._unkept.append(key)
+            return False
         entry = {
             "name": outcome.name,
             "index": outcome.index,
@@ -170,4 +226,9 @@ class JobJournal:
             "traceback": outcome.traceback,
             "seconds": outcome.seconds,
         }
-        write_json_atomic(self._entry(key), {"key": key, "outcome": entry})
+        try:
+            write_json_atomic(self._entry(key), {"key": key, "outcome": entry})
+        except OSError as exc:
+            self._failed(key, exc)
+            return False
+        return True

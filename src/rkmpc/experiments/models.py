@@ -24,7 +24,7 @@ from rkmpc.core.progress import EpochProgress
 from rkmpc.core.versions import RKMPC_VERSION
 from rkmpc.experiments.cache import ModelCache
 from rkmpc.experiments.results import DataRecord, ModelRecord, TrainingRecord
-from rkmpc.experiments.training import estimated_for
+from rkmpc.experiments.training import data_fell_short, estimated_for
 from rkmpc.learning.data.dataset import TransitionDataset
 from rkmpc.learning.io import load_model
 from rkmpc.learning.koopman.model import KoopmanModel
@@ -281,6 +281,9 @@ def learn_models(
             collect_time_s=time.perf_counter() - t0,
             data_hash=data.content_hash(),
         )
+        short = data_fell_short(data)
+        if short is not None:
+            tell(f"warning: {short}")
         key = {"data_hash": data_record.data_hash}
         for name, recipe in on_track:
             tell(f"learning the {recipe.kind} model of {name}")

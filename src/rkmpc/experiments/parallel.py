@@ -24,6 +24,10 @@ threads set to 1), so that ``n_jobs`` jobs use ``n_jobs`` cores. With
 ``n_jobs=1`` on ``"loky"`` the jobs run one after the other in the calling
 process and its thread settings are left alone.
 
+A local (loky) worker watches the process that started it and ends soon after it
+(:func:`rkmpc.experiments.backends.watch_parent`): a study killed with ``kill -9`` leaves
+no worker running its job on for minutes.
+
 Failures: a job that raises is caught in its worker. With
 ``on_error="raise"`` (default) :func:`run_jobs` raises :class:`JobError`
 naming the first failed job (in completion order) and its message, and the
@@ -52,9 +56,7 @@ from typing import Any, Protocol
 import joblib
 
 from rkmpc.core.errors import ParameterError, RkmpcError
-
-#: Backends :func:`run_jobs` accepts.
-BACKENDS = ("loky", "dask", "ray")
+from rkmpc.experiments.backends import backend_config, check_backend, watch_parent
 
 #: Environment variables set to ``"1"`` in workers (numeric libraries' thread pools).
 THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
@@ -157,8 +159,8 @@ class Journal(Protocol):
     def load(self, key: str) -> JobOutcome | None:
         """The outcome kept under ``key``, or None."""
 
-    def save(self, key: str, outcome: JobOutcome) -> None:
-        """Keep a finished job's outcome under ``key``."""
+    def save(self, key: str, outcome: JobOutcome) -> object:
+        """Keep a finished job's outcome under ``key`` (never raising: a journal that fails is counted)."""
 
 
 def limit_threads() -> None:
@@ -174,8 +176,10 @@ def limit_threads() -> None:
         torch.set_num_threads(1)
 
 
-def _run_one(index: int, job: Job, single_thread: bool) -> JobOutcome:
-    """Worker side: run one job and catch its failure."""
+def _run_one(index: int, job: Job, single_thread: bool, parent: int | None = None) -> JobOutcome:
+    """Worker side: run one job and catch its failure; a local worker ends with its ``parent``."""
+    if parent is not None:
+        watch_parent(parent)
     if single_thread:
         limit_threads()
     t0 = time.perf_counter()
@@ -194,8 +198,7 @@ def _run_one(index: int, job: Job, single_thread: bool) -> JobOutcome:
 
 
 def _check(jobs: Sequence[Job], n_jobs: int, backend: str, on_error: str) -> None:
-    if backend not in BACKENDS:
-        raise ParameterError(f"backend must be one of {list(BACKENDS)}, got {backend!r}")
+    check_backend(backend)
     if isinstance(n_jobs, bool) or not isinstance(n_jobs, int) or n_jobs == 0 or n_jobs < -1:
         raise ParameterError(f"n_jobs must be a positive integer or -1 (all cores), got {n_jobs!r}")
     if on_error not in ("raise", "record"):
@@ -258,8 +261,9 @@ def run_jobs(
         Bad ``n_jobs``, ``backend``, ``on_error`` or jobs.
     JobError
         A job failed (``on_error="raise"``), or a worker process died.
-    ImportError
-        ``dask``/``distributed`` or ``ray`` is not installed (``pip install rkmpc[cluster]``).
+    MissingPackageError
+        ``dask``/``distributed`` or ``ray`` is not installed (``pip install rkmpc[cluster]``), an
+        :class:`ImportError`.
     """
     jobs = list(jobs)
     _check(jobs, n_jobs, backend, on_error)
@@ -311,9 +315,10 @@ def _run(
     single_thread = not (backend == "loky" and n_jobs == 1)
     if backend == "loky" and n_jobs > len(todo):
         n_jobs = len(todo)  # no more workers than jobs (the threads per job stay as asked, above)
-    config, started_ray = _backend_config(backend, n_jobs, address)
+    config, started_ray = backend_config(backend, n_jobs, address)
     keys = {i: job.key for i, job in todo}
-    calls = (joblib.delayed(_run_one)(i, job, single_thread) for i, job in todo)
+    parent = os.getpid() if backend == "loky" else None  # local workers end with this process
+    calls = (joblib.delayed(_run_one)(i, job, single_thread, parent) for i, job in todo)
     try:
         with joblib.parallel_config(**config):
             for outcome in _results(calls, unordered=backend != "ray"):
@@ -330,42 +335,6 @@ def _run(
             import ray
 
             ray.shutdown()
-
-
-def _backend_config(backend: str, n_jobs: int, address: str | None) -> tuple[dict[str, Any], bool]:
-    """joblib's ``parallel_config`` for the backend, and whether Ray was started here."""
-    config: dict[str, Any] = {"backend": backend, "n_jobs": n_jobs}
-    if backend == "loky":
-        config["inner_max_num_threads"] = 1
-        return config, False
-    if backend == "dask":
-        try:
-            import distributed
-        except ImportError as exc:
-            raise ImportError(
-                "backend 'dask' needs dask and distributed: pip install 'rkmpc[cluster]'"
-            ) from exc
-        if address is not None:
-            config["scheduler_host"] = address
-            return config, False
-        try:
-            distributed.get_client()
-        except ValueError:
-            raise ParameterError(
-                "backend 'dask' without an address needs a dask.distributed.Client started in "
-                "this process (Client(...) or Client(LocalCluster(...))), or address='tcp://...'"
-            ) from None
-        return config, False
-    try:
-        import ray
-        from ray.util.joblib import register_ray
-    except ImportError as exc:
-        raise ImportError("backend 'ray' needs ray: pip install 'rkmpc[cluster]'") from exc
-    register_ray()
-    if ray.is_initialized():
-        return config, False
-    ray.init(address=address)
-    return config, True
 
 
 def _results(calls: Iterable[Any], *, unordered: bool) -> Iterator[JobOutcome]:

@@ -19,13 +19,18 @@ from rkmpc.experiments.results import TrackResult
 from rkmpc.sim.log import StepLog
 from rkmpc.track.track import Track
 
-__all__ = ["title_of", "write_comparison", "write_single_run"]
+__all__ = ["lateral_limit_of", "title_of", "write_comparison", "write_single_run"]
 
 
 def title_of(result: TrackResult) -> str:
     """``"<track> (scale <s>, <vehicle>)"``, the title of a comparison's figures and tables."""
     scenario = result.config["scenario"]
     return f"{scenario['track']} (scale {scenario['scale']:g}, {scenario['vehicle']})"
+
+
+def lateral_limit_of(result: TrackResult) -> float:
+    """The pace's lateral-acceleration limit of a comparison (m/s^2): what its tables flag peaks by."""
+    return float(result.config["scenario"]["speed_limits"]["lateral_accel"])
 
 
 def _nominal(logs: Mapping[str, StepLog]) -> dict[str, StepLog]:
@@ -35,7 +40,7 @@ def _nominal(logs: Mapping[str, StepLog]) -> dict[str, StepLog]:
 def write_comparison(out: Path, result: TrackResult, logs: Mapping[str, StepLog], track: Track) -> None:
     """Write ``results.json``, ``table.md``, ``plot.png``, ``solve_times.png`` (and ``plot_fault.png``)."""
     write_json_atomic(out / "results.json", result.to_json())
-    text = markdown_table(result.metrics())
+    text = markdown_table(result.metrics(), lateral_limit=lateral_limit_of(result))
     if result.fault is not None:
         nominal = result.metrics()
         faulted = {name: run.metrics for name, run in result.fault.runs.items()}

@@ -20,8 +20,9 @@ from typing import Any, ClassVar, Protocol, TypeVar
 from rkmpc.core.errors import ParameterError
 from rkmpc.core.validation import is_integer
 from rkmpc.core.versions import versions
+from rkmpc.experiments.backends import BACKENDS, check_backend
 from rkmpc.experiments.journal import JobJournal
-from rkmpc.experiments.parallel import BACKENDS, Job, JobOutcome, ProgressCallback, run_jobs
+from rkmpc.experiments.parallel import Job, JobOutcome, ProgressCallback, run_jobs
 
 __all__ = ["Parallel", "Study", "StudyResult", "StudyRun", "run_study", "study_versions"]
 
@@ -146,12 +147,13 @@ def run_study(
         Called with a short message before each slow stage.
     """
     where = parallel if parallel is not None else Parallel()
+    check_backend(where.backend)  # a missing package said before the shared models are trained
     tell = say if say is not None else (lambda _message: None)
     kept = None
     if journal is not None:
         settings = {"study": study.name, "settings": study.journal_settings(), "versions": study_versions()}
         kept = JobJournal(
-            Path(journal), settings, encode=study.encode, decode=study.decode, outcome=JobOutcome
+            Path(journal), settings, encode=study.encode, decode=study.decode, outcome=JobOutcome, warn=say
         ).open()
     study.prepare(tell)
     jobs = list(study.jobs())
@@ -167,4 +169,9 @@ def run_study(
         journal=kept,
     )
     run = StudyRun(parallel=where, versions=study_versions(), wall_s=time.perf_counter() - t0)
+    if kept is not None and kept.unkept:
+        tell(
+            f"journal {kept.folder}: {kept.unkept} of {len(jobs)} finished jobs not kept ({kept.failure}); "
+            "the results below are whole"
+        )
     return study.result(outcomes, run)

@@ -19,22 +19,51 @@ from rkmpc.learning.contract import Provenance
 from rkmpc.learning.data.dataset import TransitionDataset
 from rkmpc.learning.identification import IdentifiedModel, identify
 from rkmpc.learning.learn import Learned, learn, save_learned
-from rkmpc.learning.recipes import KoopmanLearner, Recipe, recipe_of_kind
+from rkmpc.learning.recipes import KoopmanLearner, ModelOutput, Recipe, recipe_of_kind
 from rkmpc.learning.tyre_model import IdentifiedTyres
 from rkmpc.vehicle.params import VehicleParams
 
 __all__ = [
+    "data_fell_short",
     "describe_heldout",
     "describe_identified",
     "describe_learned",
     "describe_tyres",
     "estimated_for",
     "identified_steering",
+    "prediction_error_unit",
     "train_to_file",
 ]
 
 #: The observation fields a Koopman model's data must measure to be learned from as they are.
 _MEASURED = ("speed", "yaw_rate", "steer_angle")
+
+#: The unit of each state feature a model may predict (:mod:`rkmpc.learning.features`).
+_UNITS = {
+    "x": "m",
+    "y": "m",
+    "yaw": "rad",
+    "speed": "m/s",
+    "yaw_rate": "rad/s",
+    "slip_angle": "rad",
+    "steer_angle": "rad",
+    "previous_speed_command": "m/s",
+    "previous_steer_command": "rad",
+}
+
+
+def prediction_error_unit(learner: KoopmanLearner) -> str:
+    """What a Koopman model's held-out prediction error measures, with its units.
+
+    The error of a prediction is the Euclidean norm over the model's outputs (its state features,
+    or the nominal input ``U_p`` of a residual model), each in its own SI unit: ``"norm of x (m),
+    y (m), yaw (rad)"``.
+    """
+    if learner.output is ModelOutput.NOMINAL_INPUT:
+        parts = ["U_p speed (m/s)", "U_p wheel angle (rad)"]
+    else:
+        parts = [f"{name} ({_UNITS[name]})" for name in learner.state.names]
+    return "norm of " + ", ".join(parts)
 
 
 def estimated_for(
@@ -59,6 +88,26 @@ def estimated_for(
         return data  # measured (a row where one is missing is for check_learnable to name)
     config = replace(estimator if estimator is not None else EstimatorConfig(), control_period=data.dt)
     return estimate_dataset(data, vehicle, steering=identified_steering(data, vehicle), config=config)
+
+
+def data_fell_short(data: TransitionDataset) -> str | None:
+    """One line when the data's laps did not complete (:func:`rkmpc.sim.collect.collect`'s ``outcome``).
+
+    A learned controller trained on LMPC laps that left the track learns from less than was asked
+    (and from a car out of control at the end); it is said where the model is made, on the
+    terminal, not only in the results. None for complete laps and for data of other sources.
+    """
+    meta = data.metadata
+    outcome = meta["outcome"] if "outcome" in meta else None
+    if outcome is None or outcome == "completed":
+        return None
+    who = meta["controller"] if "controller" in meta else "recorded"
+    laps = f" of {meta['laps']}" if "laps" in meta else ""
+    progress = f" after {float(meta['progress_laps']):.2f}{laps} laps" if "progress_laps" in meta else ""
+    return (
+        f"the {who} laps of the data did not complete ({outcome}{progress}; {len(data)} transitions): "
+        "the model learns from less than was asked"
+    )
 
 
 def identified_steering(data: TransitionDataset, vehicle: VehicleParams) -> SteeringModel:
@@ -183,7 +232,8 @@ def train_to_file(
     Returns
     -------
     list of str
-        A summary of what was written, line by line; for an identified model, its parameters,
+        A summary of what was written, line by line: first a ``warning:`` line when the data's laps
+        did not complete (:func:`data_fell_short`); for an identified model, its parameters,
         its held-out quality against the nominal model, a ``MARKED NOMINAL:`` line when it is the
         nominal model, and one ``warning:`` line per identification warning.
 
@@ -209,7 +259,8 @@ def train_to_file(
         source=source,
     )
     save_learned(learned, out)
-    return describe_learned(learned, out)
+    short = data_fell_short(data)
+    return ([] if short is None else [f"warning: {short}"]) + describe_learned(learned, out)
 
 
 def describe_learned(learned: Learned, out: str | Path) -> list[str]:
@@ -234,9 +285,11 @@ def describe_learned(learned: Learned, out: str | Path) -> list[str]:
             f"samples, {report.fit_time_s:.1f} s -> {out}"
         )
         err = report.multi_step_error
-        if err:
+        if err and isinstance(learned.recipe.learner, KoopmanLearner):
             steps = [k for k in (1, 10, len(err)) if k <= len(err)]
+            unit = prediction_error_unit(learned.recipe.learner)
             lines.append(
-                "held-out prediction error: " + ", ".join(f"{err[k - 1]:.4f} at step {k}" for k in steps)
+                f"held-out prediction error ({unit}): "
+                + ", ".join(f"{err[k - 1]:.4f} at step {k}" for k in steps)
             )
     return lines

@@ -245,9 +245,7 @@ class Provenance:
         """
         problems = self.mismatches(against, source, made)
         if problems and not allow_mismatch:
-            raise ContractError(
-                source, "; ".join(problems) + " (use allow_mismatch / --allow-mismatch to run it anyway)"
-            )
+            raise ContractError(source, "; ".join(problems), mismatch=True)
         issued = [f"{problem} (allowed)" for problem in problems]
         missing = [name for name in self.unknown() if getattr(against, name) is not None]
         if missing and not self.recorded:

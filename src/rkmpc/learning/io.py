@@ -10,6 +10,7 @@ from typing import Any
 from rkmpc.core.errors import InputFileError
 from rkmpc.core.io import write_json_atomic
 from rkmpc.core.jsonutil import to_json_ready
+from rkmpc.core.reading import check_regular_file
 from rkmpc.learning.identified_model import IdentifiedModel
 from rkmpc.learning.koopman.model import KoopmanModel
 from rkmpc.learning.recipes import IdentificationLearner, recipe_of_kind
@@ -58,10 +59,14 @@ def save_identified(model: IdentifiedModel, path: str | Path, metadata: dict[str
 def load_identified(path: str | Path) -> IdentifiedModel:
     """Read a model written by :func:`save_identified` (versions 1 to 4); clear errors for bad files.
 
+    The file's metadata (with the contract of what the model was made with) is kept on the model
+    as ``metadata_``, as :class:`~rkmpc.learning.koopman.model.KoopmanModel` keeps its own.
+
     Versions 1 and 2 predate the held-out checks: their models load with status ``unchecked``;
     versions 1 to 3 predate the tyres: their models have none.
     """
     path = Path(path)
+    check_regular_file(path)
     try:
         payload = json.loads(path.read_text())
     except FileNotFoundError:
@@ -82,9 +87,15 @@ def load_identified(path: str | Path) -> IdentifiedModel:
     if data is None or sorted(data) != sorted(names):
         raise InputFileError(path, f"expected the fields {names} (version {version})", field="model")
     try:
-        return IdentifiedModel(**data)
+        model = IdentifiedModel(**data)
     except (TypeError, ValueError) as exc:
         raise InputFileError(path, str(exc), field="model") from None
+    metadata = payload.get("metadata")
+    # What the model was made with (its contract: car, plant, period, wheelbase, scale), kept as a
+    # Koopman model keeps it (``metadata_``), so that a model file is checked against the car it
+    # drives (rkmpc.sim.build.check_model) whatever its kind.
+    object.__setattr__(model, "metadata_", dict(metadata) if isinstance(metadata, dict) else {})
+    return model
 
 
 def load_model(path: str | Path, kind: str) -> IdentifiedModel | KoopmanModel:
@@ -96,6 +107,7 @@ def load_model(path: str | Path, kind: str) -> IdentifiedModel | KoopmanModel:
     """
     recipe = recipe_of_kind(kind)
     identified = isinstance(recipe.learner, IdentificationLearner)
+    check_regular_file(path)
     _refuse_other_format(Path(path), kind, identified=identified)
     if isinstance(recipe.learner, IdentificationLearner):
         loaded = load_identified(path)
@@ -157,6 +169,7 @@ def load_any_model(path: str | Path) -> IdentifiedModel | KoopmanModel:
     """The model at ``path``, whatever its kind: an identified model (JSON) or a Koopman model (archive)
     of the kind its file records, checked as :func:`load_model` checks it."""
     path = Path(path)
+    check_regular_file(path)
     try:
         with path.open("rb") as handle:
             head = handle.read(64).lstrip()

@@ -4,7 +4,8 @@ A :class:`BagRecorder` is a recorder of :meth:`rkmpc.ros.node.ControllerNode.add
 receives every odometry the node took in, every measured wheel angle (where the car has a
 steering topic) and every drive command it published, serialises each as ROS 2 does
 (``rclpy.serialization``, CDR) and writes it to a bag (:class:`~rkmpc.learning.data.bags.BagStreamWriter`:
-under a temporary name, renamed into place when closed). The bag imports with ``rkmpc collect
+in closed segments of 2 s, so a node killed with ``kill -9`` leaves a bag of all but its last
+seconds). The bag imports with ``rkmpc collect
 --from-bag`` (``--steer-topic`` for the wheel angle) and plays with ``ros2 bag play``.
 
 The time each message is filed under (the bag's receive time) is the node's clock:

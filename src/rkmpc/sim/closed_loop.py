@@ -19,8 +19,15 @@ from rkmpc.track.track import Track
 from rkmpc.vehicle.plants.base import Plant
 
 #: Ways a run can end (``"plant_failure"``: the plant could not integrate a step, see
-#: :class:`rkmpc.core.errors.PlantIntegrationError`; the message is in :attr:`SimResult.failure`).
-OUTCOMES = ("completed", "off_track", "timeout", "diverged", "plant_failure")
+#: :class:`rkmpc.core.errors.PlantIntegrationError`; ``"stopped"``: the controller stopped the car,
+#: which then stood still, for :data:`STOPPED_S`; why is in :attr:`SimResult.failure`).
+OUTCOMES = ("completed", "off_track", "timeout", "diverged", "plant_failure", "stopped")
+#: How long (s) a car must stand still, its controller refusing to drive it (a stop command with
+#: a status other than ``ok``: a spun car whose heading is no longer admissible, an observation
+#: refused), for the run to end as ``"stopped"`` instead of waiting for the time limit.
+STOPPED_S = 2.0
+#: Speed (m/s) below which a car stands still.
+STILL_SPEED = 0.05
 #: Most steps a run may take: 2 million, over 27 hours of driving at 20 Hz. A longer time limit
 #: (a track in the wrong unit, a huge ``--scale``) is refused before the run rather than left to
 #: run for days with no output.
@@ -44,8 +51,8 @@ class SimConfig:
         from standstill with straight wheels (False).
     max_time : float or None
         Time limit (s); None means three times the profile's lap time per lap
-        plus 10 s. Reaching it ends the run as ``"timeout"``. A limit above :data:`MAX_STEPS`
-        periods is refused by :func:`simulate`.
+        plus 10 s. Reaching it ends the run as ``"timeout"`` (the car drove on, or crawled, but
+        did not finish). A limit above :data:`MAX_STEPS` periods is refused by :func:`simulate`.
     """
 
     dt: float = 0.05
@@ -86,7 +93,8 @@ class SimResult:
     diagnostics : dict of str to float
         The controller's own counts at the end (:meth:`rkmpc.control.base.Controller.diagnostics`).
     failure : str or None
-        Why the plant failed when ``outcome`` is ``"plant_failure"``, else None.
+        Why the run ended early: the plant's error when ``outcome`` is ``"plant_failure"``, the
+        controller's last refusal when it is ``"stopped"``; else None.
     """
 
     log: StepLog
@@ -145,7 +153,9 @@ def simulate(
     state turns non-finite (``"diverged"``), when the plant cannot integrate a
     step (``"plant_failure"``: a :class:`~rkmpc.core.errors.PlantIntegrationError`
     is caught, its message kept in :attr:`SimResult.failure` and the log's
-    metadata) or at the time limit.
+    metadata), when the controller has stopped the car and it stood still for
+    :data:`STOPPED_S` (``"stopped"``: the controller refuses to drive it on, its
+    status and message kept as the failure) or at the time limit.
 
     Parameters
     ----------
@@ -183,6 +193,8 @@ def simulate(
     log = StepLog(log_columns(plant.STATE_NAMES), capacity=min(max_steps, 20000))
     names = plant.STATE_NAMES
     pose_index = (names.index("x"), names.index("y"), names.index("yaw"))
+    speed_index = names.index("v") if "v" in names else None
+    standing = 0  # steps the car stood still, stopped by its controller
     laps = LapCounter(reference.path, s0)
     s_track: float | None = None
     outcome = "timeout"
@@ -209,6 +221,16 @@ def simulate(
         )
         if command is None:
             outcome = "off_track"
+            break
+        speed = abs(float(state[speed_index] if speed_index is not None else obs.speed))
+        refused = command.speed == 0.0 and controller.info.status != "ok" and speed < STILL_SPEED
+        standing = standing + 1 if refused else 0
+        if standing * cfg.dt >= STOPPED_S:
+            outcome = "stopped"
+            failure = (
+                f"the controller stopped the car, which stood still for {STOPPED_S:g} s until {t:.2f} s; "
+                f"its last step: {controller.info.status}, {controller.info.message}"
+            )
             break
         try:
             plant.step(command, cfg.dt)

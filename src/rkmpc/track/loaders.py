@@ -41,6 +41,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rkmpc.core.errors import InputFileError, ParameterError
+from rkmpc.core.io import display_name
 from rkmpc.track.crossings import (
     Crossing,
     bridge_problem,
@@ -291,8 +292,8 @@ def load_centerline(path: str | FilePath, *, scale: float = 1.0, name: str | Non
     xy = factor * np.column_stack([cols["x_m"][keep], cols["y_m"][keep]])
     wr = factor * cols["w_tr_right_m"][keep]
     wl = factor * cols["w_tr_left_m"][keep]
-    track_name = file.stem if name is None else name
-    centerline = Path.from_points(xy, name=track_name, source=str(file))
+    track_name = display_name(file.stem) if name is None else name
+    centerline = Path.from_points(xy, name=track_name, source=display_name(str(file)))
     _check_length(file, centerline)
     crossings = _check_smoothed(file, centerline, xy, cols["_line"][keep], wr + wl)
     # Resample the widths onto a uniform arc-length grid (same number of samples as points).
@@ -303,7 +304,13 @@ def load_centerline(path: str | FilePath, *, scale: float = 1.0, name: str | Non
     wr_grid = np.interp(s_grid, s_pts, np.append(wr, wr[0]))
     wl_grid = np.interp(s_grid, s_pts, np.append(wl, wl[0]))
     return Track(
-        track_name, centerline, wr_grid, wl_grid, scale=factor, source=str(file), crossings=crossings
+        track_name,
+        centerline,
+        wr_grid,
+        wl_grid,
+        scale=factor,
+        source=display_name(str(file)),
+        crossings=crossings,
     )
 
 
@@ -335,7 +342,9 @@ def load_raceline(path: str | FilePath, *, scale: float = 1.0, name: str | None 
     cols = _read_columns(file, _RACE_COLUMNS)
     keep = _validate_loop(file, cols, ())
     xy = factor * np.column_stack([cols["x_m"][keep], cols["y_m"][keep]])
-    raceline = Path.from_points(xy, name=file.stem if name is None else name, source=str(file))
+    raceline = Path.from_points(
+        xy, name=display_name(file.stem) if name is None else name, source=display_name(str(file))
+    )
     _check_length(file, raceline)
     _check_smoothed(file, raceline, xy, cols["_line"][keep], None)
     return raceline

@@ -30,9 +30,10 @@ from typing import Any, Protocol
 import numpy as np
 
 from rkmpc.core.errors import InputFileError, ParameterError
-from rkmpc.core.io import atomic_write, read_npz
+from rkmpc.core.io import atomic_write
 from rkmpc.core.jsonutil import json_default
 from rkmpc.core.observation import OBSERVATION_FIELDS
+from rkmpc.core.reading import read_npz
 from rkmpc.learning.contract import CONTRACT_KEY, Provenance, contract_of
 from rkmpc.learning.data.checks import (
     COMMAND_FIELDS,

@@ -23,8 +23,9 @@ from typing import Any, Protocol, TypeVar
 import numpy as np
 
 from rkmpc.core.errors import InputFileError, ParameterError
-from rkmpc.core.io import atomic_write, read_npz
+from rkmpc.core.io import atomic_write
 from rkmpc.core.jsonutil import json_default
+from rkmpc.core.reading import read_npz
 from rkmpc.learning.koopman.lifting import Lifting, MLPLifting, RBFLifting, lifting_from_params
 from rkmpc.learning.koopman.settings import TRAINING_THREADS
 

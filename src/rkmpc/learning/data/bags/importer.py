@@ -93,6 +93,7 @@ def streams_to_dataset(
         "source": "bag",
         "bag": str(streams.path),
         "bag_storage": streams.storage,
+        "recording": "unfinished" if streams.unfinished else "complete",
         "frames": {"frame_id": streams.frames[0], "child_frame_id": streams.frames[1]},
         **config.describe(),
         "messages": {

@@ -17,6 +17,7 @@ import numpy as np
 
 from rkmpc.core.errors import BagError
 from rkmpc.learning.data.bags.config import BagImportConfig
+from rkmpc.learning.data.bags.stream import DRAFTS, RECORDING_KEY, SEGMENT_S, read_metadata
 from rkmpc.learning.data.bags.types import ACKERMANN_DRIVE_STAMPED, ODOMETRY, STEER_TYPES, typestore
 
 __all__ = ["ODOM_FIELDS", "BagStreams", "Stream", "bag_location", "read_streams"]
@@ -77,6 +78,9 @@ class BagStreams:
         Wheel angle (rad, one column), when a steer topic was asked for.
     frames : tuple of str
         ``(frame_id, child_frame_id)`` of the first odometry message.
+    unfinished : bool
+        The bag is a recording that never ended (``rkmpc node --record`` killed): it holds what
+        was recorded up to its last closed segment (:mod:`~rkmpc.learning.data.bags.stream`).
     """
 
     path: Path
@@ -85,6 +89,7 @@ class BagStreams:
     drive: Stream
     steer: Stream | None
     frames: tuple[str, str]
+    unfinished: bool = False
 
 
 def bag_location(path: str | Path) -> tuple[Path, str]:
@@ -105,6 +110,12 @@ def bag_location(path: str | Path) -> tuple[Path, str]:
     if path.is_dir() and (path / "metadata.yaml").is_file():
         kinds = {p.suffix for p in path.iterdir()}
         return path, "ros2-mcap" if ".mcap" in kinds else "ros2-sqlite3" if ".db3" in kinds else "ros2"
+    if path.is_dir() and (path / DRAFTS).is_dir():
+        raise BagError(
+            path,
+            f"a recording that ended (killed?) before its first segment ({SEGMENT_S:g} s) was closed: "
+            "nothing in it can be read",
+        )
     raise BagError(
         path, "not a bag: a ROS 1 bag is a file ending in .bag, a ROS 2 bag a folder with a metadata.yaml"
     )
@@ -132,6 +143,7 @@ def read_streams(path: str | Path, config: BagImportConfig) -> BagStreams:
         When ``rosbags`` is not installed.
     """
     location, storage = bag_location(path)
+    unfinished = storage != "ros1" and _recording_state(location) == "unfinished"
     store = typestore(ros1=storage == "ros1")
     from rosbags.highlevel import AnyReader, AnyReaderError
 
@@ -175,7 +187,25 @@ def read_streams(path: str | Path, config: BagImportConfig) -> BagStreams:
     steer = None
     if config.steer_topic is not None:
         steer = _stream(location, config.steer_topic, rows, ("steer_angle",), ("data",), "receive time")
-    return BagStreams(path=location, storage=storage, odom=odom, drive=drive, steer=steer, frames=frames)
+    return BagStreams(
+        path=location,
+        storage=storage,
+        odom=odom,
+        drive=drive,
+        steer=steer,
+        frames=frames,
+        unfinished=unfinished,
+    )
+
+
+def _recording_state(location: Path) -> str | None:
+    """The state a recorder left in a ROS 2 bag's ``custom_data`` (``unfinished``, ``closed``), if any."""
+    try:
+        custom = read_metadata(location).get("custom_data")
+    except Exception:  # unreadable metadata: the reader says why
+        return None
+    state = custom.get(RECORDING_KEY) if isinstance(custom, dict) else None
+    return state if isinstance(state, str) else None
 
 
 def _check_topic(path: Path, topics: dict[str, Any], topic: str, types: tuple[str, ...]) -> None:
