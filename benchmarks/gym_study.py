@@ -42,6 +42,7 @@ from typing import Any
 import numpy as np
 
 from rkmpc.analysis.tables import markdown
+from rkmpc.config.loader import load_preset
 from rkmpc.control.learned.residual_config import RKMPCConfig
 from rkmpc.control.learned.trust import TrustConfig
 from rkmpc.core.errors import ParameterError
@@ -90,7 +91,7 @@ class GymStudySettings:
     observation: str = "original"
     steering: str = "data"
     estimator: str = "gym"
-    rkmpc: RKMPCConfig = field(default_factory=RKMPCConfig)
+    rkmpc: RKMPCConfig = field(default_factory=lambda: load_preset("f1tenth").controllers.rkmpc)
 
     def __post_init__(self) -> None:
         if "lmpc" not in self.controllers:
@@ -354,7 +355,12 @@ def main() -> None:
         default="gym",
         help="state estimator tuning: the gym's or the car's",
     )
-    parser.add_argument("--slip-drift", action="store_true", help="rkmpc: RKMPCConfig.slip_drift")
+    parser.add_argument(
+        "--slip-drift",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="rkmpc: RKMPCConfig.slip_drift (default: the f1tenth preset's)",
+    )
     parser.add_argument("--steer-rate-weight", type=float, default=None, help="rkmpc: RKMPCConfig field")
     parser.add_argument("--lateral-accel-weight", type=float, default=None, help="rkmpc: RKMPCConfig field")
     parser.add_argument("--no-trust", action="store_true", help="rkmpc: the trust guard off")
@@ -363,8 +369,11 @@ def main() -> None:
         "--reuse", type=Path, default=None, help="an earlier study's folder: its data sets and models"
     )
     args = parser.parse_args()
-    config = RKMPCConfig()
-    changes: dict[str, Any] = {"slip_drift": args.slip_drift}
+    # rkmpc as the f1tenth preset tunes it (tuned once, on the project's own plant); flags change it.
+    config = load_preset("f1tenth").controllers.rkmpc
+    changes: dict[str, Any] = {}
+    if args.slip_drift is not None:
+        changes["slip_drift"] = args.slip_drift
     if args.steer_rate_weight is not None:
         changes["steer_rate_weight"] = args.steer_rate_weight
     if args.lateral_accel_weight is not None:

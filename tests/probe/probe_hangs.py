@@ -10,7 +10,6 @@ from probe_cases import CLEAR_ERROR, Evidence, Probe, case, cli_error, raises, w
 GROUP = "hangs (issue 27)"
 #: The guard of each case (s): against a hang, never what is measured.
 GUARD = 120.0
-ENV_HELPER = "the Gymnasium environment's settings (src/rkmpc/envs, another helper's work)"
 
 
 def _car_file(probe: Probe, text: str) -> str:
@@ -101,7 +100,6 @@ def weights_1e300(probe: Probe) -> Evidence:
     "F1TenthEnvConfig(timestep=1000) (a 1000 s step took 4 s, larger ones an hour): refused",
     CLEAR_ERROR,
     problem="hang",
-    xfail=f"no upper bound on F1TenthEnvConfig.timestep yet: {ENV_HELPER}",
 )
 def env_timestep(_: Probe) -> Evidence:
     from rkmpc.envs.f1tenth import F1TenthEnvConfig

@@ -16,7 +16,6 @@ from probe_cases import CLEAR_ERROR, CORRECT, GRACEFUL, Evidence, Probe, case, c
 TRACEBACKS = "tracebacks (issue 27)"
 UNCLEAR = "unclear (issue 27)"
 SRC = Path(__file__).resolve().parents[2] / "src"
-ENV_HELPER = "(src/rkmpc/envs, another helper's work)"
 
 
 @case(
@@ -55,7 +54,6 @@ def backend_not_installed(probe: Probe) -> Evidence:
     "F1TenthEnvConfig(noise=True) (reset raised AttributeError): refused, a NoiseStd is needed",
     CLEAR_ERROR,
     problem="traceback",
-    xfail=f"F1TenthEnvConfig does not check the type of noise yet {ENV_HELPER}",
 )
 def env_noise_true(_: Probe) -> Evidence:
     from rkmpc.envs.f1tenth import F1TenthEnvConfig

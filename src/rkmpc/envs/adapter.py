@@ -291,6 +291,17 @@ class ControllerPolicy:
         return log
 
 
+def _check_period(env: F1TenthLikeEnv, policy: ControllerPolicy) -> None:
+    """Refuse a policy whose step is not the environment's (its commands would be held too long
+    or too short, its clock wrong); environments that do not say their step are not checked."""
+    step = getattr(getattr(env, "unwrapped", env), "timestep", None)
+    if isinstance(step, int | float) and not math.isclose(float(step), policy.timestep, rel_tol=1e-9):
+        raise ParameterError(
+            f"run_episode: the policy was built for {policy.timestep:g} s steps, the environment "
+            f"steps {float(step):g} s; build it with ControllerPolicy(controller, {float(step):g})"
+        )
+
+
 def run_episode(
     env: F1TenthLikeEnv,
     policy: ControllerPolicy,
@@ -326,6 +337,7 @@ def run_episode(
     """
     if max_steps is not None and not is_integer(max_steps, 1):
         raise ParameterError(f"run_episode: max_steps must be None or an integer >= 1, got {max_steps!r}")
+    _check_period(env, policy)
     observation, info = env.reset(seed=seed, options=options)
     policy.reset()
     steps, total = 0, 0.0

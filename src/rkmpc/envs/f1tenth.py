@@ -79,6 +79,11 @@ _LARGE = 1e30
 _OPTION_KEYS = ("poses", "start_s")
 
 
+#: Longest environment step (s) :class:`F1TenthEnvConfig` takes: the controllers plan at 0.05 s,
+#: and the plant integrates each step in 1 ms substeps.
+MAX_TIMESTEP = 1.0
+
+
 @dataclass(frozen=True)
 class F1TenthEnvConfig:
     """Settings of :class:`F1TenthTrackEnv`.
@@ -86,7 +91,8 @@ class F1TenthEnvConfig:
     Parameters
     ----------
     timestep : float
-        Duration of one environment step (s), > 0: 0.01 (the F1TENTH gym's) by default; the
+        Duration of one environment step (s), in (0, :data:`MAX_TIMESTEP`]: 0.01 (the F1TENTH
+        gym's) by default; the
         project's controllers plan at 0.05 s, so :class:`rkmpc.envs.adapter.ControllerPolicy` holds
         each command for five steps (or set 0.05 and it holds it for one).
     max_laps : int or None
@@ -116,8 +122,20 @@ class F1TenthEnvConfig:
     measured_steering: bool = True
 
     def __post_init__(self) -> None:
-        if not is_positive_number(self.timestep):
-            raise ParameterError(f"F1TenthEnvConfig.timestep must be finite and > 0, got {self.timestep!r}")
+        if not is_positive_number(self.timestep) or self.timestep > MAX_TIMESTEP:
+            # The plant integrates at 1 ms: a 1000 s step is a million substeps (an hour's wait).
+            raise ParameterError(
+                f"F1TenthEnvConfig.timestep must be in (0, {MAX_TIMESTEP:g}] s, got {self.timestep!r}"
+            )
+        for name in ("flying_start", "random_start", "measured_steering"):
+            value = getattr(self, name)
+            if not isinstance(value, bool):
+                raise ParameterError(f"F1TenthEnvConfig.{name} must be a bool (True or False), got {value!r}")
+        if self.noise is not None and not isinstance(self.noise, NoiseStd):
+            raise ParameterError(
+                "F1TenthEnvConfig.noise must be None or a rkmpc.vehicle.wrappers.NoiseStd, "
+                f"got {self.noise!r}"
+            )
         if self.max_laps is not None and not is_integer(self.max_laps, 1):
             raise ParameterError(
                 f"F1TenthEnvConfig.max_laps must be None or an integer >= 1, got {self.max_laps!r}"

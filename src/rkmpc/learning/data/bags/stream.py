@@ -116,6 +116,9 @@ class BagStreamWriter:
         self._segments = _Segments(self.path, dict(topics), store, storage, round(segment_s * _NS))
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self.path.mkdir()
+        # At once, not in the writing thread: a recording killed before its first message was
+        # written is still recognised as one (rkmpc.learning.data.bags.read.bag_location).
+        (self.path / DRAFTS).mkdir()
         self.storage = storage
         #: Messages given to :meth:`write`, by topic.
         self.counts = dict.fromkeys(topics, 0)
