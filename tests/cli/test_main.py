@@ -303,6 +303,7 @@ def test_study_cars_writes_json_plot_and_markdown(tmp_path):
     assert (out / "study_cars.png").stat().st_size > 10_000
 
 
+@pytest.mark.slow  # several seconds: the slow tier (make test-slow, run by CI)
 def test_compare_on_a_zoo_car_records_it(tmp_path):
     out = tmp_path / "cmp"
     assert main(["compare", "--controllers", "pp", "--car", "light-short", "--out", str(out)]) == 0

@@ -196,6 +196,7 @@ def test_a_ctrl_c_turned_into_a_solver_error_is_raised_again():
     raise_if_interrupted(RuntimeError("a plain solver error"))
 
 
+@pytest.mark.slow  # several seconds: the slow tier (make test-slow, run by CI)
 def test_sigint_during_an_nmpc_run_ends_it_with_nothing_written(tmp_path):
     out = tmp_path / "out"
     command = [sys.executable, "-m", "rkmpc.cli", "run", "--controller", "nmpc", "--track", "oval"]

@@ -85,6 +85,7 @@ def test_acados_nmpc_laps_builtin_like_casadi(builtin_scenario, name):
     assert np.all(np.abs(np.diff(steer)) <= step_max + 1e-9)
 
 
+@pytest.mark.slow  # several seconds: the slow tier (make test-slow, run by CI)
 @pytest.mark.parametrize("name", ACADOS)
 def test_acados_build_is_cached_outside_the_working_directory(builtin_scenario, name, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)

@@ -205,6 +205,7 @@ def test_the_recorded_bag_is_the_lap_the_simulated_car_drove(lap):
         assert topics[topic]["type"] == kind and topics[topic]["type_description_hash"] == hashes[kind]
 
 
+@pytest.mark.slow  # several seconds: the slow tier (make test-slow, run by CI)
 def test_the_node_stops_the_car_when_its_odometry_dies(tmp_path, ros_env, monkeypatch):
     import rclpy
     from ackermann_msgs.msg import AckermannDriveStamped

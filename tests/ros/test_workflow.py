@@ -175,6 +175,7 @@ def test_the_whole_workflow_gives_table_two(tmp_path):
     assert again.returncode == 2 and "--force" in again.stderr
 
 
+@pytest.mark.slow  # several seconds: the slow tier (make test-slow, run by CI)
 @pytest.mark.filterwarnings("ignore:module 'sre_:DeprecationWarning")
 def test_ctrl_c_stops_every_process_and_the_node_closes_its_bag(tmp_path):
     pytest.importorskip("rclpy", reason="ROS 2 is not installed (make ros)", exc_type=ImportError)

@@ -311,6 +311,7 @@ def test_recorded_data_carry_the_step_count_and_statuses(builtin_lap):
     assert data_verdict(meta) is None
 
 
+@pytest.mark.slow  # several seconds: the slow tier (make test-slow, run by CI)
 def test_small_pace_study_on_the_builtin_track():
     cfg = PaceStudyConfig(
         tracks=("builtin",),
