@@ -47,6 +47,10 @@ class QPResult:
 class DenseQP(ABC):
     """Common interface of the QP backends.
 
+    :meth:`setup` and :meth:`update` keep the stacked bounds ``[lb; lbA]`` and ``[ub; ubA]`` (in
+    place, so a backend may hold them); a backend builds and updates its solver in
+    :meth:`_setup_solver` and :meth:`_update_solver`.
+
     Parameters
     ----------
     max_iterations : int
@@ -58,13 +62,16 @@ class DenseQP(ABC):
             raise ValueError(f"max_iterations must be >= 1, got {max_iterations}")
         self.max_iterations = max_iterations
         self._is_setup = False
+        # The number of variables and the stacked bounds [lb; lbA] and [ub; ubA] the backends share.
+        self._n = 0
+        self._lower = np.zeros(0)
+        self._upper = np.zeros(0)
 
     @property
     def is_setup(self) -> bool:
         """Whether :meth:`setup` has been called."""
         return self._is_setup
 
-    @abstractmethod
     def setup(
         self,
         H: np.ndarray,
@@ -75,9 +82,16 @@ class DenseQP(ABC):
         lbA: np.ndarray,
         ubA: np.ndarray,
     ) -> None:
-        """Build the solver workspace (called once)."""
+        """Build the solver workspace (called once).
 
-    @abstractmethod
+        ``min 0.5 x' H x + f' x`` subject to ``lb <= x <= ub`` and ``lbA <= A x <= ubA``.
+        """
+        self._n = int(np.shape(H)[0])
+        self._lower = np.ascontiguousarray(np.concatenate([lb, lbA]), dtype=float)
+        self._upper = np.ascontiguousarray(np.concatenate([ub, ubA]), dtype=float)
+        self._setup_solver(H, f, A)
+        self._is_setup = True
+
     def update(
         self,
         H: np.ndarray | None = None,
@@ -89,6 +103,27 @@ class DenseQP(ABC):
         A: np.ndarray | None = None,
     ) -> None:
         """Replace numbers of the problem (``A`` too, its shape kept); shapes must stay the same."""
+        n = self._n
+        if lb is not None:
+            self._lower[:n] = lb
+        if lbA is not None:
+            self._lower[n:] = lbA
+        if ub is not None:
+            self._upper[:n] = ub
+        if ubA is not None:
+            self._upper[n:] = ubA
+        bounds_changed = any(b is not None for b in (lb, ub, lbA, ubA))
+        self._update_solver(H, f, A, bounds_changed)
+
+    @abstractmethod
+    def _setup_solver(self, H: np.ndarray, f: np.ndarray, A: np.ndarray) -> None:
+        """Build the backend's workspace; ``_n``, ``_lower`` and ``_upper`` are set."""
+
+    @abstractmethod
+    def _update_solver(
+        self, H: np.ndarray | None, f: np.ndarray | None, A: np.ndarray | None, bounds_changed: bool
+    ) -> None:
+        """Hand the backend the numbers that changed (``_lower`` and ``_upper`` are up to date)."""
 
     @abstractmethod
     def solve(self) -> QPResult:

@@ -39,9 +39,6 @@ class DaqpQP(DenseQP):
 
         self._model = daqp.Model()
         self.factorize = bool(factorize)
-        self._n = 0
-        self._bu = np.zeros(0)
-        self._bl = np.zeros(0)
         # Factorised mode: the fixed constraint matrix, R^-1, DAQP's constraint
         # rows [R^-1; A R^-1] and linear term R^-T f.
         self._A = np.zeros((0, 0))
@@ -51,37 +48,24 @@ class DaqpQP(DenseQP):
         self._g = np.zeros(0)
         self._nonconvex = False
 
-    def setup(
-        self,
-        H: np.ndarray,
-        f: np.ndarray,
-        lb: np.ndarray,
-        ub: np.ndarray,
-        A: np.ndarray,
-        lbA: np.ndarray,
-        ubA: np.ndarray,
-    ) -> None:
-        n = int(np.shape(H)[0])
-        self._n = n
-        self._bu = np.ascontiguousarray(np.concatenate([ub, ubA]), dtype=float)
-        self._bl = np.ascontiguousarray(np.concatenate([lb, lbA]), dtype=float)
+    def _setup_solver(self, H: np.ndarray, f: np.ndarray, A: np.ndarray) -> None:
+        n = self._n
         if self.factorize:
             self._A = np.array(A, dtype=float).reshape(-1, n)
             self._rows = np.zeros((n + self._A.shape[0], n))
             self._f = np.array(f, dtype=float)
             self._g = np.zeros(n)
             self._factor(H)
-            self._model.setup(np.eye(n), self._g, self._rows, self._bu, self._bl)
+            self._model.setup(np.eye(n), self._g, self._rows, self._upper, self._lower)
         else:
             self._model.setup(
                 np.ascontiguousarray(H, dtype=float),
                 np.ascontiguousarray(f, dtype=float),
                 np.ascontiguousarray(A, dtype=float),
-                self._bu,
-                self._bl,
+                self._upper,
+                self._lower,
             )
         self._model.settings = {"iter_limit": self.max_iterations}
-        self._is_setup = True
 
     def _factor(self, H: np.ndarray) -> None:
         """``R^-1`` of ``H = R' R``, DAQP's constraint rows and its linear term (factorised mode)."""
@@ -102,32 +86,12 @@ class DaqpQP(DenseQP):
             self._rows = self._rinv
         np.dot(self._f, self._rinv, out=self._g)
 
-    def update(
-        self,
-        H: np.ndarray | None = None,
-        f: np.ndarray | None = None,
-        lb: np.ndarray | None = None,
-        ub: np.ndarray | None = None,
-        lbA: np.ndarray | None = None,
-        ubA: np.ndarray | None = None,
-        A: np.ndarray | None = None,
+    def _update_solver(
+        self, H: np.ndarray | None, f: np.ndarray | None, A: np.ndarray | None, bounds_changed: bool
     ) -> None:
         n = self._n
-        bounds_changed = False
-        if ub is not None:
-            self._bu[:n] = ub
-            bounds_changed = True
-        if ubA is not None:
-            self._bu[n:] = ubA
-            bounds_changed = True
-        if lb is not None:
-            self._bl[:n] = lb
-            bounds_changed = True
-        if lbA is not None:
-            self._bl[n:] = lbA
-            bounds_changed = True
-        bu = self._bu if bounds_changed else None
-        bl = self._bl if bounds_changed else None
+        bu = self._upper if bounds_changed else None
+        bl = self._lower if bounds_changed else None
         if not self.factorize:
             self._model.update(
                 H=None if H is None else np.ascontiguousarray(H, dtype=float),
@@ -146,12 +110,12 @@ class DaqpQP(DenseQP):
                     np.dot(self._A, self._rinv, out=self._rows[n:])
                     if f is not None:
                         np.dot(self._f, self._rinv, out=self._g)
-                    self._model.update(A=self._rows, f=self._g, bupper=self._bu, blower=self._bl)
+                    self._model.update(A=self._rows, f=self._g, bupper=self._upper, blower=self._lower)
                 return
         if H is not None:
             self._factor(H)
             if not self._nonconvex:
-                self._model.update(A=self._rows, f=self._g, bupper=self._bu, blower=self._bl)
+                self._model.update(A=self._rows, f=self._g, bupper=self._upper, blower=self._lower)
             return
         if f is not None and not self._nonconvex:
             np.dot(self._f, self._rinv, out=self._g)

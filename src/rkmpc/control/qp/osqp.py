@@ -34,25 +34,12 @@ class OsqpQP(DenseQP):
         self._solver: Any = None
         self._triu: tuple[np.ndarray, np.ndarray] = (np.zeros(0, int), np.zeros(0, int))
         self._a_pattern = np.zeros(0, int)
-        self._l = np.zeros(0)
-        self._u = np.zeros(0)
-        self._n = 0
 
-    def setup(
-        self,
-        H: np.ndarray,
-        f: np.ndarray,
-        lb: np.ndarray,
-        ub: np.ndarray,
-        A: np.ndarray,
-        lbA: np.ndarray,
-        ubA: np.ndarray,
-    ) -> None:
+    def _setup_solver(self, H: np.ndarray, f: np.ndarray, A: np.ndarray) -> None:
         import osqp
         from scipy import sparse
 
-        n = int(np.shape(H)[0])
-        self._n = n
+        n = self._n
         rows, cols = np.triu_indices(n)
         # Column-major order of the upper triangle, the order CSC stores it in.
         order = np.lexsort((rows, cols))
@@ -67,15 +54,13 @@ class OsqpQP(DenseQP):
         rows, cols = pattern.nonzero()
         order = np.lexsort((rows, cols))
         self._a_pattern = cols[order] * dense.shape[0] + rows[order]
-        self._l = np.concatenate([lb, lbA]).astype(float)
-        self._u = np.concatenate([ub, ubA]).astype(float)
         self._solver = osqp.OSQP()
         self._solver.setup(
             P,
             np.asarray(f, dtype=float),
             Acon,
-            self._l,
-            self._u,
+            self._lower,
+            self._upper,
             verbose=False,
             warm_starting=True,
             polishing=True,
@@ -83,35 +68,19 @@ class OsqpQP(DenseQP):
             eps_rel=self.eps,
             max_iter=self.max_iterations,
         )
-        self._is_setup = True
 
-    def update(
-        self,
-        H: np.ndarray | None = None,
-        f: np.ndarray | None = None,
-        lb: np.ndarray | None = None,
-        ub: np.ndarray | None = None,
-        lbA: np.ndarray | None = None,
-        ubA: np.ndarray | None = None,
-        A: np.ndarray | None = None,
+    def _update_solver(
+        self, H: np.ndarray | None, f: np.ndarray | None, A: np.ndarray | None, bounds_changed: bool
     ) -> None:
         n = self._n
-        if lb is not None:
-            self._l[:n] = lb
-        if lbA is not None:
-            self._l[n:] = lbA
-        if ub is not None:
-            self._u[:n] = ub
-        if ubA is not None:
-            self._u[n:] = ubA
         kwargs: dict[str, np.ndarray] = {}
         if H is not None:
             kwargs["Px"] = np.asarray(H)[self._triu]
         if f is not None:
             kwargs["q"] = np.asarray(f, dtype=float)
-        if any(b is not None for b in (lb, ub, lbA, ubA)):
-            kwargs["l"] = self._l
-            kwargs["u"] = self._u
+        if bounds_changed:
+            kwargs["l"] = self._lower
+            kwargs["u"] = self._upper
         if A is not None:  # the values of [I; A] in the (dense) pattern set up
             dense = np.vstack([np.eye(n), np.asarray(A, dtype=float)])
             kwargs["Ax"] = dense.T.reshape(-1)[self._a_pattern]
