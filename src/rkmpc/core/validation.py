@@ -16,6 +16,8 @@ from rkmpc.core.errors import ParameterError
 __all__ = [
     "is_integer",
     "is_positive_number",
+    "is_real",
+    "named_numbers",
     "require_nonnegative",
     "require_positive",
     "require_positive_value",
@@ -27,6 +29,11 @@ def is_integer(value: Any, minimum: int | None = None) -> bool:
     if isinstance(value, bool) or not isinstance(value, numbers.Integral):
         return False
     return minimum is None or int(value) >= minimum
+
+
+def is_real(value: Any) -> bool:
+    """A real number (Python or numpy, not a bool); NaN and the infinities count."""
+    return isinstance(value, numbers.Real) and not isinstance(value, bool)
 
 
 def is_positive_number(value: Any, upper: float = math.inf) -> bool:
@@ -61,3 +68,23 @@ def require_positive_value(value: Any, name: str) -> float:
     if not (math.isfinite(out) and out > 0.0):
         raise ParameterError(f"{name} must be finite and > 0, got {value!r}")
     return out
+
+
+def named_numbers(value: Any, name: str) -> tuple[tuple[str, float], ...]:
+    """``value`` as a tuple of ``(label, number)`` pairs; else :class:`ParameterError` naming ``name``.
+
+    ``value`` is a sequence (a tuple, or a JSON list) of ``[str, number or None]`` pairs; None is
+    read as NaN (JSON has no NaN). The numbers keep their units.
+    """
+    problem = f"{name} must be a sequence of [name, number or None] pairs, got {value!r}"
+    if not isinstance(value, (tuple, list)):
+        raise ParameterError(problem)
+    out = []
+    for pair in value:
+        if not isinstance(pair, (tuple, list)) or len(pair) != 2 or not isinstance(pair[0], str):
+            raise ParameterError(problem)
+        number = math.nan if pair[1] is None else pair[1]
+        if not is_real(number):
+            raise ParameterError(problem)
+        out.append((pair[0], float(number)))
+    return tuple(out)

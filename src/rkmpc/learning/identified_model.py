@@ -12,12 +12,11 @@ identified too (``nmpc-id``'s model, :mod:`rkmpc.learning.tyre_fit`), carry a st
 from __future__ import annotations
 
 import math
-import numbers
 from collections.abc import Mapping
 from dataclasses import KW_ONLY, dataclass
 
 from rkmpc.core.errors import ParameterError
-from rkmpc.core.validation import is_integer
+from rkmpc.core.validation import is_integer, is_real, named_numbers
 from rkmpc.learning.servo_model import MAX_DELAY, SERVO_STRUCTURES
 from rkmpc.learning.tyre_model import IdentifiedTyres
 from rkmpc.learning.understeer import UNDERSTEER_RANGE
@@ -48,13 +47,9 @@ RATE_LIMIT_RANGE = (0.01, 100.0)
 _NAME = "IdentifiedModel"
 
 
-def _number(value: object) -> bool:
-    return isinstance(value, numbers.Real) and not isinstance(value, bool)
-
-
 def _check_range(field: str, value: object, bounds: tuple[float, float], unit: str) -> None:
     low, high = bounds
-    if not (_number(value) and low <= float(value) <= high):  # type: ignore[arg-type]
+    if not (is_real(value) and low <= float(value) <= high):  # type: ignore[arg-type]
         raise ParameterError(
             f"{_NAME}.{field} must be a number in [{low:g}, {high:g}] {unit} (plausible for a car), "
             f"got {value!r}"
@@ -164,7 +159,7 @@ class IdentifiedModel:
             value = getattr(self, field)
             if value is None:  # JSON's null: not measured
                 object.__setattr__(self, field, math.nan)
-            elif not _number(value):
+            elif not is_real(value):
                 raise ParameterError(f"{_NAME}.{field} must be a number or None, got {value!r}")
         for field in ("n_samples", "folds"):
             if not is_integer(getattr(self, field), 0):
@@ -180,7 +175,9 @@ class IdentifiedModel:
         object.__setattr__(self, "warnings", tuple(self.warnings))
         if not isinstance(self.status_reason, str):
             raise ParameterError(f"{_NAME}.status_reason must be a string, got {self.status_reason!r}")
-        object.__setattr__(self, "heldout_candidates", _candidates(self.heldout_candidates))
+        object.__setattr__(
+            self, "heldout_candidates", named_numbers(self.heldout_candidates, f"{_NAME}.heldout_candidates")
+        )
         if isinstance(self.tyres, Mapping):  # read from JSON
             object.__setattr__(self, "tyres", IdentifiedTyres.from_json(self.tyres))
         if self.tyres is not None and not isinstance(self.tyres, IdentifiedTyres):
@@ -199,19 +196,3 @@ class IdentifiedModel:
         if not (self.nominal_rmse > 0.0):
             return math.nan
         return self.heldout_rmse / self.nominal_rmse
-
-
-def _candidates(value: object) -> tuple[tuple[str, float], ...]:
-    """``heldout_candidates`` as a tuple of ``(name, rmse)`` pairs (a JSON list of pairs, None for NaN)."""
-    problem = f"{_NAME}.heldout_candidates must be a sequence of [name, number or None] pairs, got {value!r}"
-    if not isinstance(value, (tuple, list)):
-        raise ParameterError(problem)
-    out = []
-    for pair in value:
-        if not isinstance(pair, (tuple, list)) or len(pair) != 2 or not isinstance(pair[0], str):
-            raise ParameterError(problem)
-        rmse = math.nan if pair[1] is None else pair[1]
-        if not _number(rmse):
-            raise ParameterError(problem)
-        out.append((pair[0], float(rmse)))
-    return tuple(out)

@@ -13,7 +13,6 @@ nominal tyres) and the held-out figures.
 from __future__ import annotations
 
 import math
-import numbers
 from collections.abc import Mapping
 from dataclasses import dataclass, fields
 from typing import Any
@@ -21,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from rkmpc.core.errors import ParameterError
-from rkmpc.core.validation import is_integer
+from rkmpc.core.validation import is_integer, is_real, named_numbers
 from rkmpc.vehicle.params import PacejkaParams, VehicleParams
 from rkmpc.vehicle.tyres import LinearTyre, PacejkaTyre, TyreModel
 
@@ -58,10 +57,6 @@ MAX_PEAK_FACTOR, MAX_STIFFNESS = 5.0, 100.0
 _NAME = "IdentifiedTyres"
 
 
-def _number(value: object) -> bool:
-    return isinstance(value, numbers.Real) and not isinstance(value, bool)
-
-
 @dataclass(frozen=True, kw_only=True)
 class AxleCurve:
     """Lateral force of one axle per unit vertical load, friction included, against the slip angle.
@@ -91,7 +86,7 @@ class AxleCurve:
         if (
             not isinstance(values, (tuple, list))
             or len(values) != len(names)
-            or not all(map(_number, values))
+            or not all(map(is_real, values))
         ):
             raise ParameterError(
                 f"AxleCurve.parameters of a {self.kind} curve must be numbers {names}, got {values!r}"
@@ -261,7 +256,7 @@ class IdentifiedTyres:
                 value = getattr(self, f.name)
                 if value is None:  # JSON's null: not measured
                     object.__setattr__(self, f.name, math.nan)
-                elif not _number(value):
+                elif not is_real(value):
                     raise ParameterError(f"{_NAME}.{f.name} must be a number or None, got {value!r}")
         reach = self.slip_reach
         if not isinstance(reach, (tuple, list)) or len(reach) != 2:
@@ -272,7 +267,7 @@ class IdentifiedTyres:
         if not isinstance(self.warnings, (tuple, list)) or not all(isinstance(w, str) for w in self.warnings):
             raise ParameterError(f"{_NAME}.warnings must be a sequence of strings, got {self.warnings!r}")
         object.__setattr__(self, "warnings", tuple(self.warnings))
-        object.__setattr__(self, "candidates", _pairs(self.candidates))
+        object.__setattr__(self, "candidates", named_numbers(self.candidates, f"{_NAME}.candidates"))
 
     @classmethod
     def from_json(cls, value: Mapping[str, Any]) -> IdentifiedTyres:
@@ -294,18 +289,3 @@ class IdentifiedTyres:
     def tyres(self, mu: float) -> tuple[TyreModel, TyreModel]:
         """Front and rear tyre models of a car with friction ``mu`` (:meth:`AxleCurve.tyre`)."""
         return self.front.tyre(mu), self.rear.tyre(mu)
-
-
-def _pairs(value: object) -> tuple[tuple[str, float], ...]:
-    problem = f"{_NAME}.candidates must be a sequence of [name, number or None] pairs, got {value!r}"
-    if not isinstance(value, (tuple, list)):
-        raise ParameterError(problem)
-    out = []
-    for pair in value:
-        if not isinstance(pair, (tuple, list)) or len(pair) != 2 or not isinstance(pair[0], str):
-            raise ParameterError(problem)
-        score = math.nan if pair[1] is None else pair[1]
-        if not _number(score):
-            raise ParameterError(problem)
-        out.append((pair[0], float(score)))
-    return tuple(out)

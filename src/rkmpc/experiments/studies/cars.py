@@ -23,10 +23,15 @@ from rkmpc.core.errors import ParameterError
 from rkmpc.experiments.compare import CompareConfig, compare
 from rkmpc.experiments.journal import canonical_json
 from rkmpc.experiments.parallel import Job, JobOutcome
-from rkmpc.experiments.results import TrackResult
 from rkmpc.experiments.studies.common import json_object, str_tuple
 from rkmpc.experiments.studies.tables import summary_table
-from rkmpc.experiments.studies.tracks import TrackJob, TracksStudyConfig, job_records, train_shared_models
+from rkmpc.experiments.studies.tracks import (
+    ComparisonJournal,
+    TrackJob,
+    TracksStudyConfig,
+    job_records,
+    train_shared_models,
+)
 from rkmpc.experiments.study import Say, StudyRun
 from rkmpc.vehicle.zoo import get_car
 
@@ -232,7 +237,7 @@ class CarsStudyResult:
 
 
 @dataclass(frozen=True)
-class CarsStudy:
+class CarsStudy(ComparisonJournal):
     """Every controller on cars it was not built for (``rkmpc study cars``)."""
 
     config: CarsStudyConfig
@@ -255,15 +260,6 @@ class CarsStudy:
             for (car, spec, seed) in self.keys()
             for cfg in (self.config.job_config(car, spec, seed),)
         ]
-
-    def journal_settings(self) -> dict[str, Any]:
-        return {}  # everything else is in each job's key (its whole comparison)
-
-    def encode(self, value: TrackResult) -> dict[str, Any]:
-        return value.to_json()
-
-    def decode(self, data: Any) -> TrackResult:
-        return TrackResult.from_json(data)
 
     def result(self, outcomes: list[JobOutcome], run: StudyRun) -> CarsStudyResult:
         keys = self.keys()

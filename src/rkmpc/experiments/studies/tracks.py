@@ -35,7 +35,14 @@ from rkmpc.experiments.studies.tables import runs_table, summary_table
 from rkmpc.experiments.study import Say, StudyRun
 from rkmpc.learning.recipes import DataSource, recipe_for
 
-__all__ = ["TrackJob", "TracksStudy", "TracksStudyConfig", "TracksStudyResult", "job_records"]
+__all__ = [
+    "ComparisonJournal",
+    "TrackJob",
+    "TracksStudy",
+    "TracksStudyConfig",
+    "TracksStudyResult",
+    "job_records",
+]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -230,8 +237,25 @@ class TracksStudyResult:
         return None
 
 
+class ComparisonJournal:
+    """The journal of a study whose jobs are comparisons (:func:`compare`), each one keyed by its config.
+
+    A job's key is its whole comparison's settings, so the journal needs no settings of its own; a
+    job's value is its :class:`TrackResult`, stored as JSON.
+    """
+
+    def journal_settings(self) -> dict[str, Any]:
+        return {}  # everything else is in each job's key (its whole comparison)
+
+    def encode(self, value: TrackResult) -> dict[str, Any]:
+        return value.to_json()
+
+    def decode(self, data: Any) -> TrackResult:
+        return TrackResult.from_json(data)
+
+
 @dataclass(frozen=True)
-class TracksStudy:
+class TracksStudy(ComparisonJournal):
     """Every controller on every track and seed (``rkmpc study tracks``)."""
 
     config: TracksStudyConfig
@@ -250,15 +274,6 @@ class TracksStudy:
             Job(f"{cfg.track} seed {cfg.seed}", compare, (cfg,), key=canonical_json(cfg.to_json()))
             for cfg in self.configs()
         ]
-
-    def journal_settings(self) -> dict[str, Any]:
-        return {}  # everything else is in each job's key (its whole comparison)
-
-    def encode(self, value: TrackResult) -> dict[str, Any]:
-        return value.to_json()
-
-    def decode(self, data: Any) -> TrackResult:
-        return TrackResult.from_json(data)
 
     def result(self, outcomes: list[JobOutcome], run: StudyRun) -> TracksStudyResult:
         jobs = job_records(self.configs(), outcomes)

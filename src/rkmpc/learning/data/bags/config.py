@@ -9,6 +9,7 @@ from typing import Any
 
 from rkmpc.core.errors import ParameterError
 from rkmpc.core.validation import is_integer
+from rkmpc.learning.data.resampling import GapAndTolerance
 from rkmpc.learning.data.window import TimeWindow
 
 __all__ = [
@@ -58,7 +59,7 @@ def _choice(obj: object, name: str, allowed: tuple[str, ...]) -> None:
 
 
 @dataclass(frozen=True)
-class BagImportConfig:
+class BagImportConfig(GapAndTolerance):
     """How :func:`rkmpc.learning.data.bags.import_bag` turns a bag into transitions.
 
     Parameters
@@ -153,16 +154,6 @@ class BagImportConfig:
         for flag in ("lateral_velocity", "yaw_rate"):
             if not isinstance(getattr(self, flag), bool):
                 raise ParameterError(f"{name}.{flag} must be true or false, got {getattr(self, flag)!r}")
-
-    @property
-    def gap(self) -> float:
-        """The odometry gap (s) that starts a new episode: ``max_gap`` or three periods."""
-        return 3.0 * self.dt if self.max_gap is None else float(self.max_gap)
-
-    @property
-    def tolerance(self) -> float:
-        """How late (s) a command may be stamped and still count for a sample."""
-        return 0.25 * self.dt if self.command_tolerance is None else float(self.command_tolerance)
 
     def describe(self) -> dict[str, Any]:
         """JSON-able record of the import (for the data set's metadata)."""

@@ -8,9 +8,8 @@ from pathlib import Path
 import numpy as np
 
 from rkmpc.core.errors import BagError
-from rkmpc.core.versions import versions
-from rkmpc.learning.contract import Provenance
 from rkmpc.learning.data.bags.config import BagImportConfig
+from rkmpc.learning.data.bags.imported import imported_dataset
 from rkmpc.learning.data.bags.read import BagStreams, Stream, read_streams
 from rkmpc.learning.data.bags.resample import Samples, Transitions, resample, transitions
 from rkmpc.learning.data.dataset import TransitionDataset
@@ -88,8 +87,7 @@ def streams_to_dataset(
     found = transitions(samples)
     if len(found) < config.min_samples:
         raise BagError(streams.path, _too_little(streams, samples, found, config), config.odom_topic)
-    all_versions = versions(["rosbags"])
-    metadata = {
+    source = {
         "source": "bag",
         "bag": str(streams.path),
         "bag_storage": streams.storage,
@@ -102,22 +100,8 @@ def streams_to_dataset(
             "steer": None if streams.steer is None else len(streams.steer),
         },
         "start_stamp": float(found.stamps[0]) / 1e9,
-        "vehicle": vehicle.name,
-        "wheelbase": vehicle.wheelbase,
-        "scale": scale,
-        "rkmpc_version": all_versions["rkmpc"],
-        "versions": all_versions,
     }
-    data = TransitionDataset(
-        obs=found.obs,
-        command=found.command,
-        next_obs=found.next_obs,
-        dt=config.dt,
-        episode=found.episode,
-        metadata=metadata,
-    )
-    made_with = Provenance(vehicle=vehicle.name, dt=config.dt, wheelbase=vehicle.wheelbase, scale=scale)
-    return data.with_contract(made_with)
+    return imported_dataset(found, source, dt=config.dt, vehicle=vehicle, scale=scale, packages=["rosbags"])
 
 
 def _windowed(streams: BagStreams, window: TimeWindow) -> BagStreams:

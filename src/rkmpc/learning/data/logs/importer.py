@@ -24,8 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from rkmpc.core.errors import InputFileError
-from rkmpc.core.versions import versions
-from rkmpc.learning.contract import Provenance
+from rkmpc.learning.data.bags.imported import imported_dataset
 from rkmpc.learning.data.bags.read import Stream
 from rkmpc.learning.data.bags.resample import Transitions
 from rkmpc.learning.data.dataset import TransitionDataset
@@ -307,8 +306,7 @@ def _dataset(
     vehicle: VehicleParams,
     scale: float | None,
 ) -> TransitionDataset:
-    all_versions = versions()
-    metadata = {
+    source = {
         "source": "csv",
         "log": str(signals.folder),
         "csv_spec": spec.describe(),
@@ -316,20 +314,5 @@ def _dataset(
         "rows": {name: len(stream) for name, stream in signals.streams().items()},
         "start_stamp": signals.origin / _NS,
         "dt": spec.dt,
-        "vehicle": vehicle.name,
-        "wheelbase": vehicle.wheelbase,
-        "scale": scale,
-        "rkmpc_version": all_versions["rkmpc"],
-        "versions": all_versions,
     }
-    data = TransitionDataset(
-        obs=found.obs,
-        command=found.command,
-        next_obs=found.next_obs,
-        dt=spec.dt,
-        episode=found.episode,
-        metadata=metadata,
-    )
-    return data.with_contract(
-        Provenance(vehicle=vehicle.name, dt=spec.dt, wheelbase=vehicle.wheelbase, scale=scale)
-    )
+    return imported_dataset(found, source, dt=spec.dt, vehicle=vehicle, scale=scale)

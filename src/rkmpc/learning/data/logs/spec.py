@@ -24,6 +24,7 @@ from rkmpc.core.errors import ParameterError
 from rkmpc.core.jsonutil import to_json_ready
 from rkmpc.core.validation import is_integer
 from rkmpc.learning.data.quality.speed_command import SPEED_COMMAND_RULES
+from rkmpc.learning.data.resampling import GapAndTolerance
 from rkmpc.learning.data.units import unit_factor
 
 __all__ = [
@@ -207,7 +208,7 @@ class CommandSource:
 
 
 @dataclass(frozen=True, kw_only=True)
-class CsvLogSpec:
+class CsvLogSpec(GapAndTolerance):
     """Where a CSV log keeps each signal, and how the import resamples it.
 
     Parameters
@@ -284,16 +285,6 @@ class CsvLogSpec:
             )
         if not is_integer(self.min_samples, 1):
             raise ParameterError(f"CsvLogSpec.min_samples must be an integer >= 1, got {self.min_samples!r}")
-
-    @property
-    def gap(self) -> float:
-        """The gap (s) that ends an episode: ``max_gap`` or three periods."""
-        return 3.0 * self.dt if self.max_gap is None else float(self.max_gap)
-
-    @property
-    def tolerance(self) -> float:
-        """How late (s) a command may be stamped and still count for a sample."""
-        return 0.25 * self.dt if self.command_tolerance is None else float(self.command_tolerance)
 
     @property
     def files(self) -> tuple[str, ...]:
