@@ -12,32 +12,17 @@ from rkmpc.core.errors import ParameterError
 from rkmpc.core.observation import Command, Observation
 from rkmpc.estimation import EstimatorConfig, StateEstimator
 from rkmpc.vehicle.params import f1tenth
+from scripted_controller import Scripted as ScriptedController
 
 CAR = f1tenth()
 DT = 0.05
-DRIVE = Command(2.0, 0.1)
 
 
-class Scripted(Controller):
-    """Answers a fixed command (or NaN, or raises) and keeps what it was shown."""
+class Scripted(ScriptedController):
+    """Answers a fixed command (or NaN, or raises), needs the optional fields measured, counts its steps."""
 
-    name = "scripted"
     dt = DT
     measured_fields = ("yaw_rate", "steer_angle")
-
-    def __init__(self, command: Command = DRIVE, fail: bool = False) -> None:
-        super().__init__()
-        self.command, self.fail = command, fail
-        self.seen: list[Observation] = []
-
-    def _reset(self) -> None:
-        self.seen = []
-
-    def _step(self, observation: Observation) -> tuple[Command, str, str]:
-        self.seen.append(observation)
-        if self.fail:
-            raise RuntimeError("solver exploded")
-        return self.command, "ok", ""
 
     def diagnostics(self) -> dict[str, float]:
         return {"scripted_steps": float(len(self.seen))}

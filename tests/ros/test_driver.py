@@ -14,7 +14,6 @@ import numpy as np
 import pytest
 
 from rkmpc.config.ros import LatencySettings, RosSettings, SafetySettings, Topics
-from rkmpc.control.base import Controller
 from rkmpc.core.observation import Command, Observation
 from rkmpc.ros.conversions import (
     command_from_drive,
@@ -30,28 +29,7 @@ from rkmpc.ros.driver import CarDriver
 from rkmpc.ros.latency import CommandHistory, propagate
 from rkmpc.ros.record import summarise, write_record
 from rkmpc.vehicle.kinematic import kinematic_step
-
-
-class Scripted(Controller):
-    """Answers ``command``; raises or answers NaN when told to."""
-
-    name = "scripted"
-    dt = 0.05
-
-    def __init__(self) -> None:
-        super().__init__()
-        self.command = Command(2.0, 0.1)
-        self.fail = False
-        self.seen: list[Observation] = []
-
-    def _reset(self) -> None:
-        self.seen = []
-
-    def _step(self, observation: Observation) -> tuple[Command, str, str]:
-        self.seen.append(observation)
-        if self.fail:
-            raise RuntimeError("solver exploded")
-        return self.command, "ok", ""
+from scripted_controller import Scripted
 
 
 @pytest.fixture

@@ -11,12 +11,9 @@ how busy the machine is, and the stop is judged on the node's own record of odom
 
 from __future__ import annotations
 
-import csv
 import json
 import math
-import os
 import signal
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -27,55 +24,15 @@ import pytest
 pytest.importorskip("rclpy", reason="ROS 2 is not installed (make ros)", exc_type=ImportError)
 pytest.importorskip("ackermann_msgs", reason="ackermann_msgs is not built (make ros)", exc_type=ImportError)
 
+from ros_processes import HANG, REPO_CAR, finish, lockstep_lap, node_rows, ros_environment, start
+
 pytestmark = pytest.mark.filterwarnings("ignore:module 'sre_:DeprecationWarning")
-
-SRC = Path(__file__).resolve().parents[2] / "src"
-#: The repository's car file: the one `rkmpc run --config` takes drives the simulated car over ROS.
-REPO_CAR = Path(__file__).resolve().parents[2] / "configs" / "f1tenth.toml"
-#: Upper bound of any wait (s): a hang fails the test instead of stalling CI.
-HANG = 300.0
-
-
-def ros_environment(log_dir: Path, name: str) -> dict[str, str]:
-    """The environment of ROS processes: localhost only, a domain id of their own, logs in ``log_dir``."""
-    domain = 1 + (os.getpid() * 31 + sum(map(ord, name))) % 200
-    env = dict(os.environ)
-    env.update(
-        PYTHONPATH=os.pathsep.join([str(SRC), *filter(None, [env.get("PYTHONPATH")])]),
-        ROS_DOMAIN_ID=str(domain),
-        ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
-        ROS_LOG_DIR=str(log_dir),
-    )
-    return env
 
 
 @pytest.fixture
 def ros_env(tmp_path, request):
     """The environment of the test's ROS processes."""
     return ros_environment(tmp_path / "ros-log", request.node.name)
-
-
-def start(args: list[str], env: dict[str, str], log: Path) -> subprocess.Popen:
-    with log.open("w") as out:
-        return subprocess.Popen(
-            [sys.executable, "-m", "rkmpc.cli", *args], env=env, stdout=out, stderr=subprocess.STDOUT
-        )
-
-
-def finish(process: subprocess.Popen, log: Path) -> int:
-    """SIGINT (Ctrl-C), then the exit status."""
-    if process.poll() is None:
-        process.send_signal(signal.SIGINT)
-    try:
-        return process.wait(timeout=60)
-    except subprocess.TimeoutExpired:
-        process.kill()
-        raise AssertionError(f"{process.args} did not stop on SIGINT:\n{log.read_text()}") from None
-
-
-def node_rows(folder: Path) -> list[dict[str, str]]:
-    with (folder / "node_log.csv").open() as f:
-        return list(csv.DictReader(f))
 
 
 STEERING = "/rkmpc/steering"
@@ -91,25 +48,10 @@ def lap(tmp_path_factory):
     """
     folder = tmp_path_factory.mktemp("lap")
     env = ros_environment(folder / "ros-log", "lap")
-    node_log, sim_log = folder / "node.log", folder / "sim.log"
     node_args = ["node", "--config", str(REPO_CAR), "--controller", "lmpc", "--out", str(folder / "node")]
     node_args += ["--record", str(folder / "bag")]
     node_args += ["--ros-args", "-p", "trigger:=odometry", "-p", f"topics.steering:={STEERING}"]
-    node = start(node_args, env, node_log)
-    try:
-        sim_args = ["sim-node", "--clock", "lockstep", "--laps", "1", "--steering-topic", STEERING]
-        sim_args += ["--startup-timeout", str(HANG), "--answer-timeout", str(HANG)]
-        sim_args += ["--out", str(folder / "sim")]
-        sim = start(sim_args, env, sim_log)
-        try:
-            code = sim.wait(timeout=HANG)
-        finally:
-            if sim.poll() is None:
-                sim.kill()
-    finally:
-        node_code = finish(node, node_log)
-    assert code == 0, sim_log.read_text()
-    assert node_code == 0, node_log.read_text()
+    lockstep_lap(folder, env, node_args, ["--steering-topic", STEERING])
     return folder
 
 

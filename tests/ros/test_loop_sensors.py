@@ -4,7 +4,7 @@ The simulated car (``rkmpc sim-node --sensors f1tenth-real``) publishes a late, 
 VESC speed 3 % low and a biased gyro, and no wheel angle; the node reads the repository's car file
 with a ``[sensors] profile = "f1tenth-real"`` section (its controller then runs behind the state
 estimator) and is given no steering topic. Both run as their own processes, as in
-``tests/ros/test_loop.py`` (whose helpers these tests use), in lock-step.
+``tests/ros/test_loop.py`` (with the helpers of ``tests/ros/ros_processes.py``), in lock-step.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ import pytest
 pytest.importorskip("rclpy", reason="ROS 2 is not installed (make ros)", exc_type=ImportError)
 pytest.importorskip("ackermann_msgs", reason="ackermann_msgs is not built (make ros)", exc_type=ImportError)
 
-from test_loop import HANG, REPO_CAR, finish, node_rows, ros_environment, start
+from ros_processes import REPO_CAR, lockstep_lap, node_rows, ros_environment
 
 pytestmark = pytest.mark.filterwarnings("ignore:module 'sre_:DeprecationWarning")
 
@@ -39,27 +39,12 @@ def real_car_file(folder: Path) -> Path:
 def drive_over_ros(folder: Path, controller: str, model: Path | None = None) -> tuple[dict, dict, list]:
     """A lap of the built-in track in lock-step; the sim's summary, the node's summary, its log rows."""
     env = ros_environment(folder / "ros-log", f"{folder.name}-{controller}")
-    node_log, sim_log = folder / "node.log", folder / "sim.log"
     node_args = ["node", "--config", str(real_car_file(folder)), "--controller", controller]
     node_args += ["--out", str(folder / "node")]
     if model is not None:
         node_args += ["--model", str(model)]
     node_args += ["--ros-args", "-p", "trigger:=odometry"]
-    node = start(node_args, env, node_log)
-    try:
-        sim_args = ["sim-node", "--clock", "lockstep", "--laps", "1", "--sensors", REAL]
-        sim_args += ["--startup-timeout", str(HANG), "--answer-timeout", str(HANG)]
-        sim_args += ["--out", str(folder / "sim")]
-        sim = start(sim_args, env, sim_log)
-        try:
-            code = sim.wait(timeout=HANG)
-        finally:
-            if sim.poll() is None:
-                sim.kill()
-    finally:
-        node_code = finish(node, node_log)
-    assert code == 0, sim_log.read_text()
-    assert node_code == 0, node_log.read_text()
+    lockstep_lap(folder, env, node_args, ["--sensors", REAL])
     sim_summary = json.loads((folder / "sim" / "summary.json").read_text())
     node_summary = json.loads((folder / "node" / "node_summary.json").read_text())
     return sim_summary, node_summary, node_rows(folder / "node")
