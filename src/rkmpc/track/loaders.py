@@ -260,6 +260,18 @@ def _check_smoothed(
     return tuple(found)
 
 
+def _read_loop(
+    path: str | FilePath, scale: float, columns: tuple[str, ...], width_cols: tuple[str, ...]
+) -> tuple[float, FilePath, dict[str, FloatArray], NDArray[np.bool_], FloatArray]:
+    """Read and check the loop of ``path``: ``(scale factor, file, columns, kept rows, scaled xy in m)``."""
+    factor = _check_scale(scale)
+    file = FilePath(path)
+    cols = _read_columns(file, columns)
+    keep = _validate_loop(file, cols, width_cols)
+    xy = factor * np.column_stack([cols["x_m"][keep], cols["y_m"][keep]])
+    return factor, file, cols, keep, xy
+
+
 def load_centerline(path: str | FilePath, *, scale: float = 1.0, name: str | None = None) -> Track:
     """Load a track centerline with widths.
 
@@ -285,11 +297,7 @@ def load_centerline(path: str | FilePath, *, scale: float = 1.0, name: str | Non
     ParameterError
         If ``scale`` is not finite and positive.
     """
-    factor = _check_scale(scale)
-    file = FilePath(path)
-    cols = _read_columns(file, _CENTER_COLUMNS)
-    keep = _validate_loop(file, cols, ("w_tr_right_m", "w_tr_left_m"))
-    xy = factor * np.column_stack([cols["x_m"][keep], cols["y_m"][keep]])
+    factor, file, cols, keep, xy = _read_loop(path, scale, _CENTER_COLUMNS, ("w_tr_right_m", "w_tr_left_m"))
     wr = factor * cols["w_tr_right_m"][keep]
     wl = factor * cols["w_tr_left_m"][keep]
     track_name = display_name(file.stem) if name is None else name
@@ -337,11 +345,7 @@ def load_raceline(path: str | FilePath, *, scale: float = 1.0, name: str | None 
     ParameterError
         If ``scale`` is not finite and positive.
     """
-    factor = _check_scale(scale)
-    file = FilePath(path)
-    cols = _read_columns(file, _RACE_COLUMNS)
-    keep = _validate_loop(file, cols, ())
-    xy = factor * np.column_stack([cols["x_m"][keep], cols["y_m"][keep]])
+    _, file, cols, keep, xy = _read_loop(path, scale, _RACE_COLUMNS, ())
     raceline = Path.from_points(
         xy, name=display_name(file.stem) if name is None else name, source=display_name(str(file))
     )

@@ -260,17 +260,9 @@ class Path:
         return d / np.linalg.norm(d, axis=-1, keepdims=True)
 
     def heading(self, s: ArrayLike) -> FloatArray | float:
-        """Path heading (rad), wrapped to (-pi, pi].
+        """Heading (rad) of the tangent from the x axis, wrapped to (-pi, pi], at arc length ``s`` (m).
 
-        Parameters
-        ----------
-        s : float or array_like, shape (...)
-            Arc length (m).
-
-        Returns
-        -------
-        float or ndarray, shape (...)
-            Heading angle of the tangent, measured from the x axis.
+        A float for a scalar ``s``, else an array of its shape.
         """
         d = np.asarray(self._d1(self._wrap_s(s)), dtype=float)
         h = np.arctan2(d[..., 1], d[..., 0])
@@ -278,19 +270,11 @@ class Path:
         return float(h) if h.ndim == 0 else h
 
     def heading_unwrapped(self, s: ArrayLike) -> FloatArray | float:
-        """Heading (rad) as a continuous function of arc length.
+        """Heading (rad) as a continuous function of arc length ``s`` (m, any real value).
 
         For ``s`` in ``[0, length)`` this is the continuous heading starting
         from ``heading(0)``; each further lap adds ``2 * pi * winding_number``.
-
-        Parameters
-        ----------
-        s : float or array_like, shape (...)
-            Arc length (m), any real value.
-
-        Returns
-        -------
-        float or ndarray, shape (...)
+        A float for a scalar ``s``, else an array of its shape.
         """
         s_arr = np.asarray(s, dtype=float)
         laps = np.floor(s_arr / self.length)
@@ -301,16 +285,9 @@ class Path:
         return float(out) if out.ndim == 0 else out
 
     def curvature(self, s: ArrayLike) -> FloatArray | float:
-        """Signed curvature (1/m), positive for left turns.
+        """Signed curvature (1/m), positive for left turns, at arc length ``s`` (m).
 
-        Parameters
-        ----------
-        s : float or array_like, shape (...)
-            Arc length (m).
-
-        Returns
-        -------
-        float or ndarray, shape (...)
+        A float for a scalar ``s``, else an array of its shape.
         """
         sw = self._wrap_s(s)
         d1 = np.asarray(self._d1(sw), dtype=float)
@@ -376,20 +353,12 @@ class Path:
         return self.projector.project(x, y, s_hint, window)
 
     def project_many(self, xy: ArrayLike, *, hinted: bool = True) -> tuple[FloatArray, FloatArray]:
-        """Project many points; see :meth:`PathProjector.project_many`.
+        """Project many points ``xy`` (m), shape ``(n, 2)``; see :meth:`PathProjector.project_many`.
 
-        Parameters
-        ----------
-        xy : array_like, shape (n, 2)
-            Points (m).
-        hinted : bool, default True
-            True: a trajectory in driving order, each point hinted by the previous
-            projection (the first is projected globally).  False: all projected globally.
-
-        Returns
-        -------
-        s, lateral : ndarray, shape (n,)
-            Arc length (m) in ``[0, length)`` and signed lateral offset (m), left positive.
+        With ``hinted`` the points are a trajectory in driving order, each hinted by the previous
+        projection (the first projected globally); without, all are projected globally.  Returns
+        ``(s, lateral)``, shape ``(n,)`` each: arc length (m) in ``[0, length)`` and signed lateral
+        offset (m), left positive.
         """
         return self.projector.project_many(xy, hinted=hinted)
 

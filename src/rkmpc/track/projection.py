@@ -40,6 +40,25 @@ _add = np.add
 _new_object = object.__new__
 
 
+def _local_point(
+    d: float, ds: float, xi: float, yi: float, th: float, k: float, c: float, sn: float
+) -> tuple[float, float, float, float, float, float]:
+    """Clamp the offset ``d`` (m) to ``[-ds, ds]`` and evaluate the local second-order expansion there.
+
+    ``(xi, yi)`` (m), ``th`` (rad), ``k`` (1/m), ``c`` and ``sn`` (cos and sin of ``th``) describe
+    the table point.  Returns ``(d, heading, x, y, cos(heading), sin(heading))``, in m and rad.
+    """
+    if -ds > d:
+        d = -ds
+    if ds < d:
+        d = ds
+    th_d = th + k * d
+    half = 0.5 * k * d * d
+    px = xi + c * d - half * sn
+    py = yi + sn * d + half * c
+    return d, th_d, px, py, _cos(th_d), _sin(th_d)
+
+
 @dataclass(frozen=True)
 class Projection:
     """Result of projecting a point onto a path.
@@ -165,17 +184,8 @@ class PathProjector:
         if 0.1 > den:
             den = 0.1
         d = along / den
-        if -ds > d:
-            d = -ds
-        if ds < d:
-            d = ds
         # Second step on the local second-order (clothoid-free) expansion.
-        th_d = th + k * d
-        half = 0.5 * k * d * d
-        px = xi + c * d - half * sn
-        py = yi + sn * d + half * c
-        cd = _cos(th_d)
-        sd = _sin(th_d)
+        d, th_d, px, py, cd, sd = _local_point(d, ds, xi, yi, th, k, c, sn)
         ex = x - px
         ey = y - py
         along = ex * cd + ey * sd
@@ -184,16 +194,7 @@ class PathProjector:
         if 0.1 > den:
             den = 0.1
         d += along / den
-        if -ds > d:
-            d = -ds
-        if ds < d:
-            d = ds
-        th_d = th + k * d
-        half = 0.5 * k * d * d
-        px = xi + c * d - half * sn
-        py = yi + sn * d + half * c
-        cd = _cos(th_d)
-        sd = _sin(th_d)
+        d, th_d, px, py, cd, sd = _local_point(d, ds, xi, yi, th, k, c, sn)
         lat = (y - py) * cd - (x - px) * sd
         length = self.length
         s = i * ds + d
