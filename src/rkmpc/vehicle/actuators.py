@@ -40,6 +40,7 @@ __all__ = [
     "SpeedLoopSpec",
     "SteeringActuator",
     "SteeringSpec",
+    "limit_accel",
 ]
 
 # Two instants closer than this (s) are the same instant.
@@ -324,17 +325,21 @@ class SpeedLoopSpec(ABC):
         """``accel(v_cmd, v)`` (m/s^2), never negative at standstill."""
 
 
+def limit_accel(acc: float, v: float, max_accel: float, max_brake: float) -> float:
+    """``acc`` (m/s^2) clipped to ``[-max_brake, max_accel]``; never negative at speed ``v <= 0`` (m/s)."""
+    if acc > max_accel:
+        acc = max_accel
+    elif acc < -max_brake:
+        acc = -max_brake
+    if v <= 0.0 and acc < 0.0:
+        acc = 0.0
+    return acc
+
+
 def _gain_law(up_gain: float, down_gain: float, max_accel: float, max_brake: float) -> SpeedLoop:
     def accel(v_cmd: float, v: float) -> float:
         error = v_cmd - v
-        acc = up_gain * error if error > 0.0 else down_gain * error
-        if acc > max_accel:
-            acc = max_accel
-        elif acc < -max_brake:
-            acc = -max_brake
-        if v <= 0.0 and acc < 0.0:
-            acc = 0.0
-        return acc
+        return limit_accel(up_gain * error if error > 0.0 else down_gain * error, v, max_accel, max_brake)
 
     return accel
 

@@ -208,6 +208,22 @@ class ActuatedPlant(Plant):
             return 1.0
         return float(self.friction(time, x, y))
 
+    def _clamped_setpoint(self, setpoint: tuple[float, float]) -> tuple[float, float]:
+        """``setpoint = (speed, steer)`` clipped to the drive's speed range (m/s) and steering limit (rad)."""
+        drive = self.params.drive
+        steering = self.params.steering
+        v_cmd = min(max(setpoint[0], drive.min_speed), drive.max_speed)
+        d_cmd = min(max(setpoint[1], -steering.max_angle), steering.max_angle)
+        return v_cmd, d_cmd
+
+    def _substeps(self, duration: float) -> list[float]:
+        """Internal steps (s) covering ``duration`` (s): :attr:`internal_dt` each, the last one shorter."""
+        h_nominal = self.internal_dt
+        n_steps = max(1, math.ceil(duration / h_nominal - 1e-9))
+        return [
+            h_nominal if i < n_steps - 1 else duration - h_nominal * (n_steps - 1) for i in range(n_steps)
+        ]
+
     @abstractmethod
     def _reset_state(self, x: float, y: float, yaw: float, speed: float, steer: float) -> None:
         """Set the state from validated reset values."""
@@ -252,7 +268,7 @@ def single_track_observation(
 
 
 class SingleTrackPlant(ActuatedPlant):
-    """An actuated plant whose state is ``[x, y, yaw, v, beta, yaw_rate, delta]`` (a Python list).
+    """An actuated plant with state ``[x, y, yaw, v, beta, yaw_rate, delta]`` (a list, :attr:`STATE_NAMES`).
 
     It starts on the kinematic circle of the reset wheel angle and reports
     :func:`single_track_observation`; subclasses integrate (:meth:`_advance`) and

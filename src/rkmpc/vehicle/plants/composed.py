@@ -15,8 +15,6 @@ RK4 over the step.
 
 from __future__ import annotations
 
-import math
-
 from rkmpc.vehicle.actuators import SpeedLoopSpec, SteeringSpec
 from rkmpc.vehicle.chassis import build_chassis
 from rkmpc.vehicle.friction import FrictionSchedule
@@ -51,11 +49,6 @@ class ComposedPlant(SingleTrackPlant):
         seeing it, on top of any delay inside the steering actuator.
     friction : FrictionSchedule or None, optional
         Multiplier of ``params.mu`` in time and space.
-
-    Attributes
-    ----------
-    STATE_NAMES : tuple of str
-        ``("x", "y", "yaw", "v", "beta", "yaw_rate", "delta")``.
     """
 
     def __init__(
@@ -86,18 +79,12 @@ class ComposedPlant(SingleTrackPlant):
     def _advance(self, duration: float, setpoint: tuple[float, float]) -> None:
         if duration <= 0.0:
             return
-        max_angle = self.params.steering.max_angle
-        drive = self.params.drive
-        v_cmd = min(max(setpoint[0], drive.min_speed), drive.max_speed)
-        d_cmd = min(max(setpoint[1], -max_angle), max_angle)
+        v_cmd, d_cmd = self._clamped_setpoint(setpoint)
         mu0 = self.params.mu
         chassis, accel, actuator = self._chassis, self._accel, self._actuator
-        h_nominal = self.internal_dt
-        n_steps = max(1, math.ceil(duration / h_nominal - 1e-9))
         x, y, yaw, v, beta, r, delta = self._s
         t = self._time
-        for i in range(n_steps):
-            h = h_nominal if i < n_steps - 1 else duration - h_nominal * (n_steps - 1)
+        for h in self._substeps(duration):
             mu = mu0 if self.friction is None else mu0 * self.friction(t, x, y)
             new_delta = actuator.advance(d_cmd, h)
             rate = (new_delta - delta) / h

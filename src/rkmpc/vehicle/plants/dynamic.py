@@ -34,9 +34,9 @@ Python (``math``), independent of the control period.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 
+from rkmpc.vehicle.actuators import limit_accel
 from rkmpc.vehicle.chassis import build_chassis
 from rkmpc.vehicle.friction import FrictionSchedule
 from rkmpc.vehicle.params import VehicleParams, f1tenth
@@ -66,13 +66,7 @@ def _build_rhs(p: VehicleParams) -> _Rhs:
     def rhs(
         yaw: float, v: float, beta: float, r: float, delta: float, v_cmd: float, delta_cmd: float, mu: float
     ) -> _Derivative:
-        acc = (v_cmd - v) / tau_v
-        if acc > max_accel:
-            acc = max_accel
-        elif acc < -max_brake:
-            acc = -max_brake
-        if v <= 0.0 and acc < 0.0:
-            acc = 0.0
+        acc = limit_accel((v_cmd - v) / tau_v, v, max_accel, max_brake)
         ddelta = (delta_cmd - delta) / tau_s
         if ddelta > max_rate:
             ddelta = max_rate
@@ -102,11 +96,6 @@ class DynamicPlant(SingleTrackPlant):
     friction : FrictionSchedule or None, optional
         Multiplier of ``params.mu`` as a function of time and position,
         evaluated at the start of every substep; None for constant friction.
-
-    Attributes
-    ----------
-    STATE_NAMES : tuple of str
-        ``("x", "y", "yaw", "v", "beta", "yaw_rate", "delta")``.
     """
 
     def __init__(
@@ -125,18 +114,12 @@ class DynamicPlant(SingleTrackPlant):
     def _advance(self, duration: float, setpoint: tuple[float, float]) -> None:
         if duration <= 0.0:
             return
-        drive = self.params.drive
-        steering = self.params.steering
-        v_cmd = min(max(setpoint[0], drive.min_speed), drive.max_speed)
-        d_cmd = min(max(setpoint[1], -steering.max_angle), steering.max_angle)
+        v_cmd, d_cmd = self._clamped_setpoint(setpoint)
         mu0 = self.params.mu
         rhs = self._rhs
-        h_nominal = self.internal_dt
-        n_steps = max(1, math.ceil(duration / h_nominal - 1e-9))
         x, y, yaw, v, beta, r, delta = self._s
         t = self._time
-        for i in range(n_steps):
-            h = h_nominal if i < n_steps - 1 else duration - h_nominal * (n_steps - 1)
+        for h in self._substeps(duration):
             mu = mu0 if self.friction is None else mu0 * self.friction(t, x, y)
             hh = 0.5 * h
             k1 = rhs(yaw, v, beta, r, delta, v_cmd, d_cmd, mu)

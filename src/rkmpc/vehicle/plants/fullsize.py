@@ -175,10 +175,7 @@ class FullSizePlant(ActuatedPlant):
     def _advance(self, duration: float, setpoint: tuple[float, float]) -> None:
         if duration <= 0.0:
             return
-        drive = self.params.drive
-        steering = self.params.steering
-        v_cmd = min(max(setpoint[0], drive.min_speed), drive.max_speed)
-        d_cmd = min(max(setpoint[1], -steering.max_angle), steering.max_angle)
+        v_cmd, d_cmd = self._clamped_setpoint(setpoint)
         start = self._time
         failures: list[str] = []
         for method in INTEGRATORS:
