@@ -238,22 +238,9 @@ def single_track_observation(
 ) -> Observation:
     """The true observation of a single-track state; ``speed`` is ``v cos(beta)``, along the heading.
 
-    Parameters
-    ----------
-    x, y : float
-        Position of the centre of gravity (m).
-    yaw : float
-        Heading (rad).
-    v : float
-        Speed magnitude at the centre of gravity (m/s).
-    beta : float
-        Side-slip angle (rad).
-    yaw_rate : float
-        Yaw rate (rad/s).
-    delta : float
-        Front wheel angle (rad).
-    time : float
-        Simulation time (s).
+    The state: position ``x, y`` (m) and speed magnitude ``v`` (m/s) of the centre of gravity,
+    heading ``yaw`` (rad), side slip ``beta`` (rad), ``yaw_rate`` (rad/s), front wheel angle
+    ``delta`` (rad), at simulation time ``time`` (s).
     """
     return Observation(
         x=x,
