@@ -239,10 +239,9 @@ def train_to_file(
 
     Raises
     ------
-    ContractError
-        When the data were recorded with another car, wheelbase or period, unless ``allow_mismatch``.
-    InputFileError
-        For data no model should be learned from (:func:`rkmpc.learning.data.plausibility.check_learnable`).
+    ContractError, InputFileError
+        As :func:`rkmpc.learning.learn.learn`, which makes the model: data of another car, wheelbase
+        or period (unless ``allow_mismatch``), or data no model should be learned from.
     """
     if made_for.wheelbase != vehicle.wheelbase:
         raise ParameterError("train_to_file: made_for must give the wheelbase of the car's vehicle")

@@ -28,6 +28,7 @@ from rkmpc.experiments.studies.pace_rules import Pace, car_ladder, check_ladder,
 from rkmpc.experiments.study import Say, StudyRun
 from rkmpc.learning.data.dataset import TransitionDataset
 from rkmpc.learning.recipes import DataSource, recipe_for
+from rkmpc.sim.closed_loop import SimResult
 from rkmpc.sim.collect import record
 from rkmpc.sim.run import RunSpec
 
@@ -267,27 +268,39 @@ def learn_pace_job(config: LearnPaceConfig) -> LearnPaceRun:
         result, _ = record(study.scenario(config.track, pace), RunSpec("lmpc", laps=1, seed=seed))
         return run_verdict(result, 1) is None, lap_metrics(result, laps=1)
 
-    result, data = record(study.scenario(config.track, ladder[0]), RunSpec("lmpc", laps=laps, seed=seed))
-    reason = run_verdict(result, laps)
-    lmpc_clean, lmpc_metrics = lmpc_lap(ladder[0])
-    pool: list[tuple[str, Pace, TransitionDataset]] = [("lmpc", ladder[0], data)]
-    iterations = [
-        LearnIteration(
-            iteration=0,
-            controller="lmpc",
-            pace=ladder[0],
+    def iteration(
+        i: int,
+        controller: str,
+        pace: Pace,
+        run: tuple[SimResult, TransitionDataset],
+        trained_on: list[dict[str, Any]] | None,
+        pool_samples: int,
+        model: dict[str, Any] | None,
+    ) -> LearnIteration:
+        """Iteration ``i``: the verdict on ``controller``'s ``run`` at ``pace``, and the LMPC's lap there."""
+        result, data = run
+        reason = run_verdict(result, laps)
+        lmpc_clean, lmpc_metrics = lmpc_lap(pace)
+        return LearnIteration(
+            iteration=i,
+            controller=controller,
+            pace=pace,
             clean=reason is None,
             reason=reason,
             outcome=result.outcome,
             metrics=lap_metrics(result, laps=laps),
             lmpc_clean=lmpc_clean,
             lmpc_metrics=lmpc_metrics,
-            trained_on=None,
-            pool_samples=0,
+            trained_on=trained_on,
+            pool_samples=pool_samples,
             recorded_samples=len(data),
-            model=None,
+            model=model,
         )
-    ]
+
+    run = record(study.scenario(config.track, ladder[0]), RunSpec("lmpc", laps=laps, seed=seed))
+    pool: list[tuple[str, Pace, TransitionDataset]] = [("lmpc", ladder[0], run[1])]
+    iterations = [iteration(0, "lmpc", ladder[0], run, None, 0, None)]
+    reason = iterations[0].reason
     if reason is not None:
         stopped = f"the LMPC's laps at the first pace {pace_label(ladder[0])} are not clean ({reason})"
         return LearnPaceRun(iterations=iterations, stopped=stopped)
@@ -300,30 +313,16 @@ def learn_pace_job(config: LearnPaceConfig) -> LearnPaceRun:
         model, model_record = make_model(
             recipe, scenario, _given(joined), key, seed=seed, epochs=config.car.training.epochs, cache=cache
         )
-        result, data = record(scenario, RunSpec(config.controller, laps=laps, seed=seed), model=model)
-        reason = run_verdict(result, laps)
-        lmpc_clean, lmpc_metrics = lmpc_lap(pace)
+        run = record(scenario, RunSpec(config.controller, laps=laps, seed=seed), model=model)
+        trained_on = [{"recorder": who, "pace": list(at), "samples": len(d)} for who, at, d in pool]
         iterations.append(
-            LearnIteration(
-                iteration=i,
-                controller=config.controller,
-                pace=pace,
-                clean=reason is None,
-                reason=reason,
-                outcome=result.outcome,
-                metrics=lap_metrics(result, laps=laps),
-                lmpc_clean=lmpc_clean,
-                lmpc_metrics=lmpc_metrics,
-                trained_on=[{"recorder": who, "pace": list(at), "samples": len(d)} for who, at, d in pool],
-                pool_samples=len(joined),
-                recorded_samples=len(data),
-                model=model_record.to_json(),
-            )
+            iteration(i, config.controller, pace, run, trained_on, len(joined), model_record.to_json())
         )
+        reason = iterations[-1].reason
         if reason is not None:
             stopped = f"laps at {pace_label(pace)} not clean ({reason})"
             break
-        pool.append((config.controller, pace, data))
+        pool.append((config.controller, pace, run[1]))
     return LearnPaceRun(iterations=iterations, stopped=stopped)
 
 
