@@ -361,17 +361,11 @@ class PaperResidualKoopmanMPC(_ResidualBase):
 
     Parameters
     ----------
-    reference : Reference
-        Path and speed profile.
-    vehicle : VehicleParams
-        The car.
+    reference, vehicle, config, lmpc_config
+        As :class:`ResidualKoopmanMPC`.
     model : LiftedModel
-        Lifted linear model with state ``[x, y, theta]`` in the local frame and
-        input the control residual ``dU``; ``C`` maps back to the pose.
-    config : ResidualMPCConfig, optional
-        Residual MPC weights and bounds.
-    lmpc_config : LMPCConfig, optional
-        The baseline LMPC's settings.
+        Lifted linear model with state ``[x, y, theta]`` (m, m, rad) in the local frame and
+        input the control residual ``dU`` (m/s, rad); ``C`` maps back to the pose.
     """
 
     name = "rkmpc-paper"

@@ -26,20 +26,16 @@ class AcadosDynamicNMPC(AcadosKinematicNMPC, DynamicNMPC):
 
     Parameters
     ----------
-    reference : Reference
-        Path and speed profile to track.
-    vehicle : VehicleParams
-        Nominal car parameters.
+    reference, vehicle, min_speed
+        As :class:`DynamicNMPC`: the path and speed profile, the nominal car, and the speed floor
+        (m/s) of the model's slip denominators.
     config : NMPCConfig, optional
-        Weights, horizon, period, RK4 sub-steps (2 by default) and Hessian
+        Weights, horizon, period (s), RK4 sub-steps (2 by default) and Hessian
         (Gauss-Newton by default).
     qp_solver : str
         One of :data:`rkmpc.control.nonlinear.acados.QP_SOLVERS`.
     cache_dir : path, optional
         Root of the generated solvers.
-    min_speed : float, optional
-        Speed floor (m/s) of the model's slip denominators; the car's
-        ``blend_speed_high`` when None.
 
     Raises
     ------
