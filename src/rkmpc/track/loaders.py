@@ -340,10 +340,8 @@ def load_raceline(path: str | FilePath, *, scale: float = 1.0, name: str | None 
 
     Raises
     ------
-    InputFileError
-        If the file is missing, unreadable or invalid (see module docstring).
-    ParameterError
-        If ``scale`` is not finite and positive.
+    InputFileError, ParameterError
+        As :func:`load_centerline`: a missing, unreadable or invalid file, or a bad ``scale``.
     """
     _, file, cols, keep, xy = _read_loop(path, scale, _RACE_COLUMNS, ())
     raceline = Path.from_points(

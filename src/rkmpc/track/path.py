@@ -332,23 +332,12 @@ class Path:
     def project(
         self, x: float, y: float, s_hint: float | None = None, window: float | None = None
     ) -> Projection:
-        """Project a point onto the path (nearest path point); see :meth:`PathProjector.project`.
+        """Nearest path point to ``(x, y)`` (m); see :meth:`PathProjector.project`.
 
-        Parameters
-        ----------
-        x, y : float
-            Point (m).
-        s_hint : float, optional
-            Arc length (m) near which the projection is expected (any real value).  Without
-            it the nearest point over the whole lap is found; with it only path points
-            within ``+-window`` of the hint, the window following the path (across ``s = 0``).
-        window : float, optional
-            Half-width of the search window (m); defaults to :attr:`default_window`.
-
-        Returns
-        -------
-        Projection
-            ``s`` in ``[0, length)``, signed lateral offset (left positive) and heading.
+        Without ``s_hint`` (m, any real value) the nearest point over the whole lap is found; with
+        it only path points within ``+-window`` (m, default :attr:`default_window`) of the hint, the
+        window following the path (across ``s = 0``).  The :class:`Projection` holds ``s`` (m) in
+        ``[0, length)``, the signed lateral offset (m, left positive) and the heading (rad).
         """
         return self.projector.project(x, y, s_hint, window)
 
