@@ -40,6 +40,19 @@ _add = np.add
 _new_object = object.__new__
 
 
+def _newton_offset(dx: float, dy: float, c: float, sn: float, k: float) -> float:
+    """Newton step (m) along a path point of heading cos ``c``, sin ``sn`` and curvature ``k`` (1/m).
+
+    ``(dx, dy)`` (m) is the query point relative to the path point.
+    """
+    along = dx * c + dy * sn
+    lat = dy * c - dx * sn
+    den = 1.0 - k * lat
+    if 0.1 > den:
+        den = 0.1
+    return along / den
+
+
 def _local_point(
     d: float, ds: float, xi: float, yi: float, th: float, k: float, c: float, sn: float
 ) -> tuple[float, float, float, float, float, float]:
@@ -176,24 +189,10 @@ class PathProjector:
         """Refine a projection starting from dense-table point ``i`` (scalar hot path)."""
         xi, yi, th, k, c, sn = self._lrow[i]
         ds = self.ds
-        dx = x - xi
-        dy = y - yi
-        along = dx * c + dy * sn
-        lat = dy * c - dx * sn
-        den = 1.0 - k * lat
-        if 0.1 > den:
-            den = 0.1
-        d = along / den
+        d = _newton_offset(x - xi, y - yi, c, sn, k)
         # Second step on the local second-order (clothoid-free) expansion.
         d, th_d, px, py, cd, sd = _local_point(d, ds, xi, yi, th, k, c, sn)
-        ex = x - px
-        ey = y - py
-        along = ex * cd + ey * sd
-        lat = ey * cd - ex * sd
-        den = 1.0 - k * lat
-        if 0.1 > den:
-            den = 0.1
-        d += along / den
+        d += _newton_offset(x - px, y - py, cd, sd, k)
         d, th_d, px, py, cd, sd = _local_point(d, ds, xi, yi, th, k, c, sn)
         lat = (y - py) * cd - (x - px) * sd
         length = self.length
