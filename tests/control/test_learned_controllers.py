@@ -243,19 +243,24 @@ def test_steering_rate_weight_smooths_the_correction(builtin_scenario, learned):
     assert changes[1] < changes[0]
 
 
-def test_steering_rate_weight_pulls_the_first_correction_to_the_last_one(builtin_scenario, learned):
-    # w (d_0 - d_last)^2: with a weight that dominates every other term, the first steering
-    # correction stays at the one applied last (the linear term reaches the QP), not at 0.
-    sc = builtin_scenario
-    p = sc.reference.path.position(4.0)
-    obs = Observation(
+def _on_the_line_at(sc, s: float) -> Observation:
+    """The car on the reference line at arc length ``s``, heading along it at 2 m/s, wheels straight."""
+    p = sc.reference.path.position(s)
+    return Observation(
         x=float(p[0]),
         y=float(p[1]),
-        yaw=float(sc.reference.path.heading(4.0)),
+        yaw=float(sc.reference.path.heading(s)),
         speed=2.0,
         yaw_rate=0.0,
         steer_angle=0.0,
     )
+
+
+def test_steering_rate_weight_pulls_the_first_correction_to_the_last_one(builtin_scenario, learned):
+    # w (d_0 - d_last)^2: with a weight that dominates every other term, the first steering
+    # correction stays at the one applied last (the linear term reaches the QP), not at 0.
+    sc = builtin_scenario
+    obs = _on_the_line_at(sc, 4.0)
     firsts = []
     for last in (0.05, -0.05):
         cfg = replace(
@@ -271,15 +276,7 @@ def test_steering_rate_weight_pulls_the_first_correction_to_the_last_one(builtin
 def test_lateral_acceleration_weight_prices_steering_by_the_planned_speed(builtin_scenario, learned):
     # The residual Hessian gains 2 * w * (v_k**2 / L)**2 on the k-th steering correction, nothing else.
     sc = builtin_scenario
-    p = sc.reference.path.position(4.0)
-    obs = Observation(
-        x=float(p[0]),
-        y=float(p[1]),
-        yaw=float(sc.reference.path.heading(4.0)),
-        speed=2.0,
-        yaw_rate=0.0,
-        steer_angle=0.0,
-    )
+    obs = _on_the_line_at(sc, 4.0)
     hessians, plans = [], []
     for weight in (0.0, 0.003):
         cfg = replace(ResidualKoopmanMPC.default_config, lateral_accel_weight=weight)

@@ -192,13 +192,14 @@ class _ResidualBase(Controller):
         lateral = self.lateral
         if not self._qp.is_setup:
             self._qp.setup(H, f, lb, ub, lateral.rows, lateral.lower, lateral.upper)
-        elif lateral.config.enabled:
-            hessian = None if H is self._qp_hessian else H
-            self._qp.update(
-                H=hessian, f=f, lb=lb, ub=ub, A=lateral.rows, lbA=lateral.lower, ubA=lateral.upper
-            )
         else:
-            self._qp.update(H=None if H is self._qp_hessian else H, f=f, lb=lb, ub=ub)
+            hessian = None if H is self._qp_hessian else H
+            if lateral.config.enabled:  # its rows change every step; without it there are none
+                self._qp.update(
+                    H=hessian, f=f, lb=lb, ub=ub, A=lateral.rows, lbA=lateral.lower, ubA=lateral.upper
+                )
+            else:
+                self._qp.update(H=hessian, f=f, lb=lb, ub=ub)
         self._qp_hessian = H
         result = self._qp.solve()
         if not result.solved or not _all_finite(result.x):
