@@ -67,6 +67,13 @@ def ridge_lstsq(Phi: np.ndarray, T: np.ndarray, ridge: float = 0.0) -> np.ndarra
     return V / scale[:, None]
 
 
+def _fit_linear(Z: np.ndarray, U: np.ndarray, T: np.ndarray, ridge: float) -> tuple[np.ndarray, np.ndarray]:
+    """The matrices ``M`` (q, nz) and ``N`` (q, nu) of ``t_k = M z_k + N u_k``, by :func:`ridge_lstsq`."""
+    nz = Z.shape[1]
+    W = ridge_lstsq(np.hstack([Z, U]), T, ridge)
+    return W[:nz].T.copy(), W[nz:].T.copy()
+
+
 def fit_dynamics(
     Z: np.ndarray, U: np.ndarray, Z_next: np.ndarray, ridge: float = 0.0
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -95,9 +102,7 @@ def fit_dynamics(
         raise ParameterError(f"Z_next has shape {Z_next.shape}, Z has {Z.shape}")
     if U.shape[0] != Z.shape[0]:
         raise ParameterError(f"U has {U.shape[0]} samples, Z has {Z.shape[0]}")
-    nz = Z.shape[1]
-    W = ridge_lstsq(np.hstack([Z, U]), Z_next, ridge)
-    return W[:nz].T.copy(), W[nz:].T.copy()
+    return _fit_linear(Z, U, Z_next, ridge)
 
 
 def fit_output(
@@ -126,6 +131,4 @@ def fit_output(
     U = np.zeros((Z.shape[0], 0)) if U is None else _matrix(U, "U")
     if Y.shape[0] != Z.shape[0] or U.shape[0] != Z.shape[0]:
         raise ParameterError(f"sample counts differ: Z {Z.shape[0]}, U {U.shape[0]}, Y {Y.shape[0]}")
-    nz = Z.shape[1]
-    W = ridge_lstsq(np.hstack([Z, U]), Y, ridge)
-    return W[:nz].T.copy(), W[nz:].T.copy()
+    return _fit_linear(Z, U, Y, ridge)
