@@ -282,3 +282,20 @@ def test_a_residual_model_trained_on_ds2_predicts_ds3_better_than_the_kinematic_
     assert residual5["heading_mean_rad"] < kinematic5["heading_mean_rad"]
     residual1, kinematic1 = rows[("residual", 1)], rows[("kinematic", 1)]
     assert residual1["position_mean_m"] <= 1.0 * kinematic1["position_mean_m"]
+
+
+def test_the_exact_inputs_predict_what_a_perfect_input_correction_would(evaluation):
+    # The kinematic model driven by each recorded step's own U_p: its heading is exact, its position
+    # misses only the sideways motion the bicycle cannot make.
+    bound = {r.horizon_steps: r for r in evaluation.exact_inputs}
+    assert sorted(bound) == list(HORIZONS) and {r.model for r in bound.values()} == {"exact-inputs"}
+    assert bound[1].heading_mean_rad < 1e-12
+    for h in HORIZONS:
+        assert bound[h].heading_mean_rad < 1e-9
+        assert bound[h].position_mean_m < 1.05 * evaluation.row("residual", h).position_mean_m
+        assert bound[h].position_mean_m < evaluation.row("kinematic", h).position_mean_m
+    # What the bound still misses grows with the horizon: the sideways motion the bicycle cannot make.
+    assert bound[HORIZONS[-1]].position_mean_m > bound[HORIZONS[0]].position_mean_m > 0
+    record = evaluation.to_json()
+    assert [row["horizon_steps"] for row in record["exact_inputs"]] == list(HORIZONS)
+    assert "Exact inputs (the kinematic model driven by the inputs" in evaluation.to_markdown()

@@ -132,3 +132,26 @@ def test_a_window_keeps_its_span_relative_or_absolute(real_logs, imported):
 def test_a_window_outside_the_log_is_an_error_naming_it(real_logs):
     with pytest.raises(InputFileError, match=r"window 500:600 holds 0 sample\(s\) of pose .*spans 0 to 127"):
         import_csv_log(real_logs / "DS3", f1tenth(), FRICTION_MAPS, window=TimeWindow(500.0, 600.0))
+
+
+@pytest.mark.parametrize("run", ["DS2", "DS3"])
+def test_the_pose_moves_like_the_centre_of_gravity_the_preset_takes_it_for(imported, run):
+    # The logger's notes do not say which point the pose is of; how it moves sideways in turns does.
+    point = imported[run].report.pose_point
+    assert point is not None and point.consistent is True
+    assert point.expected_m == f1tenth().lr
+    assert abs(point.offset_m - point.expected_m) < 3 * point.std_error_m < 0.05
+    assert point.samples > 1500
+    assert not any("which point of the car" in w for w in imported[run].report.warnings)
+    assert "Where the pose is on the car" in imported[run].report.to_markdown()
+
+
+def test_a_pose_frame_set_wrongly_is_a_warning(real_logs):
+    # Taken for the rear axle, the pose is moved lr forward: it then moves like a point 2 lr ahead.
+    wrong = replace(FRICTION_MAPS, pose=replace(FRICTION_MAPS.pose, frame="rear-axle"))
+    report = import_csv_log(real_logs / "DS2", f1tenth(), wrong).report
+    point = report.pose_point
+    assert point is not None and point.consistent is False
+    assert point.offset_m == pytest.approx(2 * f1tenth().lr, abs=3 * point.std_error_m)
+    assert any("check which point of the car the pose is of" in w for w in report.warnings)
+    assert "NOT consistent" in report.to_markdown()

@@ -18,6 +18,14 @@ against the nominal kinematic bicycle driven by the same commands (``kinematic``
 ``koopman`` (kmpc)
     The lifted model predicts the pose in the car's frame and the speed itself.
 
+Beside the models, the *exact inputs* (``exact-inputs``): the kinematic bicycle driven by the input
+``U_p`` that reproduces each recorded step's travelled distance and heading change
+(:func:`rkmpc.learning.data.residuals.kinematic_inverse` of the truth), i.e. what a perfect model
+of the residual model's form (a correction of the kinematic model's input) would predict. What it
+still misses is the sideways motion the bicycle cannot make (the centre of gravity drifting to the
+inside of a turn, slip): nearly a floor for that form (a model can land marginally closer in
+position only by erring in heading).
+
 The ``paper`` model (rkmpc-paper) predicts what a *correction* ``dU`` on top of the LMPC's plan
 does, which recorded driving does not contain: it cannot be evaluated here and is refused.
 
@@ -30,10 +38,8 @@ model each model was trained with.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping, Sequence
-from dataclasses import asdict, dataclass, replace
-from typing import Any
+from dataclasses import replace
 
 import numpy as np
 
@@ -44,8 +50,10 @@ from rkmpc.core.errors import ParameterError
 from rkmpc.core.observation import OBSERVATION_FIELDS
 from rkmpc.estimation.config import EstimatorConfig
 from rkmpc.estimation.steering import SteeringModel, wheel_angles
+from rkmpc.experiments.evaluation import Evaluation, EvaluationRow, evaluation_row
 from rkmpc.experiments.training import estimated_for
 from rkmpc.learning.data.dataset import TransitionDataset
+from rkmpc.learning.data.residuals import kinematic_inverse
 from rkmpc.learning.features import KMPC_STATE, RESIDUAL_STATE, previous_commands
 from rkmpc.learning.identification import IdentifiedModel, wheel_from_commands
 from rkmpc.learning.koopman.model import KoopmanModel
@@ -62,114 +70,6 @@ MAX_HORIZON = 200
 _X, _Y, _YAW, _SPEED, _STEER = (
     OBSERVATION_FIELDS.index(n) for n in ("x", "y", "yaw", "speed", "steer_angle")
 )
-
-
-@dataclass(frozen=True, kw_only=True)
-class EvaluationRow:
-    """One model at one horizon: the errors of its predictions (SI units) over ``samples`` starts.
-
-    ``model`` is the model's kind (``kinematic`` for the nominal model, ``residual``, ``identified``,
-    ``koopman``, ...), ``file`` the name it was given (its file's; None for the nominal model).
-    """
-
-    model: str
-    file: str | None
-    horizon_steps: int
-    horizon_s: float
-    samples: int
-    position_mean_m: float
-    position_p95_m: float
-    heading_mean_rad: float
-    speed_mean_m_s: float
-
-
-@dataclass(frozen=True, kw_only=True)
-class Evaluation:
-    """What :func:`evaluate` found: one row per model and horizon, and how the truth was made."""
-
-    rows: list[EvaluationRow]
-    transitions: int
-    starts: int
-    dt: float
-    truth: str
-    source: str | None
-    models: dict[str, str]
-
-    def row(self, model: str, horizon: int) -> EvaluationRow:
-        """The row of ``model`` (a kind, or a file's name where two files have one kind) at ``horizon``."""
-        found = [
-            row
-            for row in self.rows
-            if row.horizon_steps == horizon and (row.file == model or (row.model == model))
-        ]
-        named = [row for row in found if row.file == model]
-        if len(named) == 1:
-            return named[0]
-        if len(found) == 1:
-            return found[0]
-        if found:
-            files = ", ".join(str(row.file) for row in found)
-            raise ParameterError(f"{len(found)} models of kind {model!r} ({files}): name one by its file")
-        raise ParameterError(f"no evaluation of {model!r} at {horizon} steps")
-
-    def label(self, row: EvaluationRow) -> str:
-        """What to call the row's model: its kind, or its file's name where two files have one kind."""
-        same = {r.file for r in self.rows if r.model == row.model}
-        return row.model if len(same) == 1 else f"{row.model} ({row.file})"
-
-    def to_json(self) -> dict[str, Any]:
-        return {
-            "source": self.source,
-            "transitions": self.transitions,
-            "starts": self.starts,
-            "dt": self.dt,
-            "truth": self.truth,
-            "models": dict(self.models),
-            "rows": [asdict(row) for row in self.rows],
-        }
-
-    def figure(self) -> Any:
-        """Position and heading error against the horizon, one line per model."""
-        from rkmpc.analysis.prediction_plots import plot_prediction_errors
-
-        labels = {self.label(row): row.file or row.model for row in self.rows}
-        steps = sorted({row.horizon_steps for row in self.rows})
-
-        def series(field: str) -> dict[str, list[float]]:
-            return {
-                label: [float(getattr(self.row(key, h), field)) for h in steps]
-                for label, key in labels.items()
-            }
-
-        return plot_prediction_errors(
-            [h * self.dt for h in steps],
-            series("position_mean_m"),
-            series("position_p95_m"),
-            series("heading_mean_rad"),
-            f"open-loop prediction of {self.source or 'recorded driving'}",
-        )
-
-    def to_markdown(self) -> str:
-        """One row per model and horizon, with the ratio of its errors to the kinematic model's."""
-        lines = [
-            f"Open-loop prediction of {self.transitions} recorded transitions ({self.starts} starts, "
-            f"dt {self.dt:g} s); truth: {self.truth}.",
-            "",
-            "| model | file | steps | s | position mean (m) | p95 (m) | vs kinematic | heading (rad) | "
-            "speed (m/s) |",
-            "|---|---|---|---|---|---|---|---|---|",
-        ]
-        for r in self.rows:
-            base = self.row("kinematic", r.horizon_steps)
-            ratio = r.position_mean_m / base.position_mean_m if base.position_mean_m > 0 else math.nan
-            p95 = r.position_p95_m / base.position_p95_m if base.position_p95_m > 0 else math.nan
-            lines.append(
-                f"| {r.model} | {r.file or '-'} | {r.horizon_steps} | {r.horizon_s:.2f} | "
-                f"{r.position_mean_m:.4f} | "
-                f"{r.position_p95_m:.4f} | {ratio:.2f} / {p95:.2f} | {r.heading_mean_rad:.4f} | "
-                f"{r.speed_mean_m_s:.3f} |"
-            )
-        return "\n".join(lines) + "\n"
 
 
 def model_kind(model: object) -> str:
@@ -288,6 +188,30 @@ def _predict(
     )
 
 
+def _exact_inputs(
+    reference: TransitionDataset, starts: np.ndarray, horizon: int, wheelbase: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Poses and speeds of the kinematic model driven by each step's own ``U_p`` (module docstring)."""
+    pose = reference.obs[:, [_X, _Y, _YAW]]
+    inputs = _window(
+        kinematic_inverse(pose, reference.next_obs[:, [_X, _Y, _YAW]], wheelbase, reference.dt),
+        starts,
+        horizon,
+    )
+    curvature = np.tan(inputs[..., 1]) / wheelbase
+    return _arcs(pose[starts], inputs[..., 0], curvature, reference.dt), inputs[..., 0]
+
+
+def _errors(
+    predicted: tuple[np.ndarray, np.ndarray], truth_pose: np.ndarray, truth_speed: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Position (m), heading (rad) and speed (m/s) errors (M, H) of predicted poses and speeds."""
+    poses, speeds = predicted
+    position = np.hypot(*(poses[..., :2] - truth_pose[..., :2]).transpose(2, 0, 1))
+    heading = np.abs(wrap_angle(poses[..., 2] - truth_pose[..., 2]))
+    return position, heading, np.abs(speeds - truth_speed)
+
+
 def evaluate(
     data: TransitionDataset,
     models: Mapping[str, object],
@@ -341,26 +265,10 @@ def evaluate(
             if estimated and model is not None
             else reference
         )
-        poses, speeds = _predict(kind, model, own, starts, horizon, vehicle)
-        position = np.hypot(*(poses[..., :2] - truth_pose[..., :2]).transpose(2, 0, 1))
-        heading = np.abs(wrap_angle(poses[..., 2] - truth_pose[..., 2]))
-        speed = np.abs(speeds - truth_speed)
-        for h in steps:
-            k = h - 1
-            rows.append(
-                EvaluationRow(
-                    model=kind,
-                    file=name,
-                    horizon_steps=h,
-                    horizon_s=h * data.dt,
-                    samples=int(starts.size),
-                    position_mean_m=float(np.mean(position[:, k])),
-                    position_p95_m=float(np.percentile(position[:, k], 95)),
-                    heading_mean_rad=float(np.mean(heading[:, k])),
-                    speed_mean_m_s=float(np.nanmean(speed[:, k])),
-                )
-            )
+        errors = _errors(_predict(kind, model, own, starts, horizon, vehicle), truth_pose, truth_speed)
+        rows += [evaluation_row(kind, name, h, data.dt, errors, starts.size) for h in steps]
     truth = "the state estimator's smoothed estimates" if estimated else "the data as recorded"
+    bound = _errors(_exact_inputs(reference, starts, horizon, vehicle.wheelbase), truth_pose, truth_speed)
     return Evaluation(
         rows=rows,
         transitions=len(data),
@@ -369,4 +277,5 @@ def evaluate(
         truth=truth,
         source=source,
         models={name: kinds[name] for name in models},
+        exact_inputs=[evaluation_row("exact-inputs", None, h, data.dt, bound, starts.size) for h in steps],
     )

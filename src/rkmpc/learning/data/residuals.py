@@ -31,7 +31,7 @@ MIN_DISTANCE = 1e-9
 _SERIES_LIMIT = 1e-4
 
 
-def _arc_geometry(pose: np.ndarray, next_pose: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def arc_geometry(pose: np.ndarray, next_pose: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Signed arc length (m), heading change (rad) and direction error (rad) of each step."""
     p = np.asarray(pose, dtype=float)
     q = np.asarray(next_pose, dtype=float)
@@ -99,7 +99,7 @@ def kinematic_inverse(pose: np.ndarray, next_pose: np.ndarray, wheelbase: float,
     """
     length_wb = require_positive_value(wheelbase, "wheelbase")
     step = require_positive_value(dt, "dt")
-    length, dpsi, _ = _arc_geometry(pose, next_pose)
+    length, dpsi, _ = arc_geometry(pose, next_pose)
     moving = np.abs(length) >= MIN_DISTANCE
     safe = np.where(moving, length, 1.0)
     steer = np.where(moving, np.arctan(length_wb * dpsi / safe), 0.0)
@@ -150,7 +150,7 @@ def control_residuals(data: TransitionDataset, wheelbase: float) -> ResidualLabe
     poses = data.poses()
     next_poses = data.next_poses()
     nominal = kinematic_inverse(poses, next_poses, length_wb, data.dt)
-    _, _, direction = _arc_geometry(poses, next_poses)
+    _, _, direction = arc_geometry(poses, next_poses)
     applied = np.array(data.command, dtype=float)
     return ResidualLabels(
         applied=applied,

@@ -32,6 +32,7 @@ from rkmpc.learning.data.logs.read import LogSignals, column_notes, read_signals
 from rkmpc.learning.data.logs.spec import CsvLogSpec, ValueSource
 from rkmpc.learning.data.logs.stretches import Resampled, cut, resample_stretches, sensor_stretches
 from rkmpc.learning.data.quality import measures as m
+from rkmpc.learning.data.quality.pose_point import pose_point
 from rkmpc.learning.data.quality.records import PoseJump, ScaleFit, UnitCheck
 from rkmpc.learning.data.quality.report import QualityReport
 from rkmpc.learning.data.quality.speed_command import speed_command_check, with_measured_speed_commands
@@ -124,7 +125,9 @@ def import_csv_log(
         data = with_measured_speed_commands(data, vehicle.drive.time_constant)
     data = replace(data, metadata={**data.metadata, "speed_command": asdict(check)})
     warning = check.message()
-    report = replace(report, speed_command=check, warnings=report.warnings + ((warning,) if warning else ()))
+    report = replace(report, speed_command=check, pose_point=pose_point(data, vehicle.lr))
+    warnings = findings(report, _dead_columns(signals, spec)) + ((warning,) if warning else ())
+    report = replace(report, warnings=warnings)
     return LogImport(data=data, report=report)
 
 
@@ -172,9 +175,9 @@ def _report(
         stale_command_samples=result.stale,
         columns=column_notes(signals.tables, spec),
         coverage=m.coverage(found.obs[:, 3], found.obs[:, 4]),
-        warnings=(),
+        warnings=(),  # filled in by import_csv_log once the data set is made
     )
-    return replace(report, warnings=findings(report, _dead_columns(signals, spec)))
+    return report
 
 
 def _t(stream: Stream, origin: int) -> np.ndarray:

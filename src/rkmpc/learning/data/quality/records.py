@@ -12,6 +12,7 @@ __all__ = [
     "EpisodeSpan",
     "Histogram",
     "PoseJump",
+    "PosePoint",
     "Reversing",
     "ScaleFit",
     "SignalRate",
@@ -125,3 +126,24 @@ class Coverage:
     speed: Histogram
     curvature_range: tuple[float, float] | None
     curvature: Histogram | None
+
+
+@dataclass(frozen=True, kw_only=True)
+class PosePoint:
+    """Where on the car the pose is, from how it moves sideways in turns.
+
+    A car whose rear axle does not slide moves a point ``l`` ahead of that axle at the angle
+    ``atan(l * curvature)`` to its heading; ``offset_m`` is ``l`` fitted by least squares (with
+    its standard error ``std_error_m``) to the steps' direction errors (the angle between each
+    step's displacement and its heading, :func:`rkmpc.learning.data.residuals.control_residuals`),
+    beside a constant and a term in the lateral acceleration (real slip). ``expected_m`` is where
+    the data should hold it (the centre of gravity, ``lr`` ahead of the rear axle; None: not
+    known); ``consistent`` is None then.
+    """
+
+    offset_m: float
+    std_error_m: float
+    expected_m: float | None
+    r2: float
+    samples: int
+    consistent: bool | None

@@ -20,6 +20,7 @@ from rkmpc.learning.data.quality.records import (
     EpisodeSpan,
     Histogram,
     PoseJump,
+    PosePoint,
     Reversing,
     ScaleFit,
     SignalRate,
@@ -80,6 +81,8 @@ class QualityReport:
         Speeds and curvatures of the transitions.
     speed_command : SpeedCommandCheck or None
         Whether the recorded speed command set the car's speed (and whether it was replaced).
+    pose_point : PosePoint or None
+        Where on the car the pose is, from its sideways motion in turns (None: not measured).
     warnings : tuple of str
         The findings that need a look, in words.
     """
@@ -105,6 +108,7 @@ class QualityReport:
     coverage: Coverage
     warnings: tuple[str, ...]
     speed_command: SpeedCommandCheck | None = None
+    pose_point: PosePoint | None = None
 
     def to_json(self) -> dict[str, Any]:
         """Plain JSON types (NaN as null); ``longest_gap_s`` added to each rate."""
@@ -121,6 +125,7 @@ class QualityReport:
             _jumps(self),
             _speed_scale(self),
             _units(self),
+            _pose_point(self.pose_point),
             _reversing(self),
             _columns(self),
             _coverage(self.coverage),
@@ -228,6 +233,23 @@ def _units(report: QualityReport) -> list[str]:
     if not report.units:
         return [*lines, "No rate to check against the pose."]
     return lines + [line for u in report.units for line in _wrap(f"- {u.message}", "  ")]
+
+
+def _pose_point(point: PosePoint | None) -> list[str]:
+    lines = ["### Where the pose is on the car", ""]
+    if point is None:
+        return [*lines, "Not measured: too few steps above 0.5 m/s, or too little turning."]
+    text = (
+        f"The pose moves like a point {point.offset_m:.3f} +- {point.std_error_m:.3f} m ahead of a rear "
+        f"axle that does not slide (fit of the steps' sideways motion on their curvature, "
+        f"{point.samples} steps, R^2 {point.r2:.2f})"
+    )
+    if point.expected_m is None:
+        return lines + _wrap(text + ".")
+    verdict = "consistent" if point.consistent else "NOT consistent"
+    return lines + _wrap(
+        f"{text}; the data should hold the centre of gravity, {point.expected_m:.3f} m ahead: {verdict}."
+    )
 
 
 def _reversing(report: QualityReport) -> list[str]:

@@ -46,6 +46,13 @@ def findings(report: QualityReport, dead_columns: tuple[str, ...] = ()) -> tuple
         for u in report.units
         if u.suspicious and not (scaled and u.signal == "speed" and u.match is None)
     ]
+    point = report.pose_point
+    if point is not None and point.consistent is False and point.expected_m is not None:
+        out.append(
+            f"the pose moves like a point {point.offset_m:.3f} m ahead of the rear axle, where the "
+            f"centre of gravity the data should hold is {point.expected_m:.3f} m ahead: check which "
+            "point of the car the pose is of (the spec's pose frame: cog or rear-axle)"
+        )
     if report.reversing is not None and report.reversing.segments:
         r = report.reversing
         out.append(f"{r.segments} reversing segment(s), {r.total_s:.2f} s in all: left out")
