@@ -21,10 +21,12 @@ from rkmpc.vehicle.registry import PLANTS, make_plant
 
 def test_registry_builds_known_plants() -> None:
     assert set(PLANTS) == {"f1tenth", "fullsize"}
-    f1 = make_plant("f1tenth", input_delay=0.02)
+    f1 = make_plant("f1tenth")
     assert isinstance(f1, DynamicPlant)
     assert f1.params == f1tenth()
-    assert f1.input_delay == 0.02
+    assert f1.input_delay == 0.0
+    with pytest.raises(TypeError):  # settings go to the plant's class, typed, not through the registry
+        make_plant("f1tenth", input_delay=0.02)  # type: ignore[call-arg]
     full = make_plant("fullsize")
     assert isinstance(full, FullSizePlant)
     assert full.params.name == "fullsize"

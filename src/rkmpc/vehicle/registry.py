@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any
 
 from rkmpc.core.registry import Registry
 from rkmpc.vehicle.params import f1tenth
@@ -14,31 +13,24 @@ from rkmpc.vehicle.plants.fullsize import FullSizePlant
 __all__ = ["PLANTS", "make_plant"]
 
 
-def _make_f1tenth(**options: Any) -> Plant:
-    params = options.pop("params", None) or f1tenth()
-    return DynamicPlant(params, **options)
+def _make_f1tenth() -> Plant:
+    return DynamicPlant(f1tenth())
 
 
-def _make_fullsize(**options: Any) -> Plant:
-    return FullSizePlant(**options)
-
-
-#: Plant factories by name; each accepts the plant's keyword options.
-PLANTS: Registry[Callable[..., Plant]] = Registry(
-    "plant", {"f1tenth": _make_f1tenth, "fullsize": _make_fullsize}
+#: Plant factories by name, each making the preset's plant with its default settings (a plant with
+#: other settings is built from its class: ``DynamicPlant(params, internal_dt=...)``).
+PLANTS: Registry[Callable[[], Plant]] = Registry(
+    "plant", {"f1tenth": _make_f1tenth, "fullsize": FullSizePlant}
 )
 
 
-def make_plant(name: str, **options: Any) -> Plant:
+def make_plant(name: str) -> Plant:
     """Build a registered plant.
 
     Parameters
     ----------
     name : str
         A key of :data:`PLANTS` (``"f1tenth"``, ``"fullsize"``).
-    **options
-        Keyword options of the plant's constructor (``internal_dt``,
-        ``input_delay``, ``friction``; ``params`` for ``"f1tenth"``).
 
     Returns
     -------
@@ -50,4 +42,4 @@ def make_plant(name: str, **options: Any) -> Plant:
     UnknownNameError
         If ``name`` is not registered.
     """
-    return PLANTS[name](**options)
+    return PLANTS[name]()

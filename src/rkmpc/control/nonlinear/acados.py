@@ -150,8 +150,12 @@ class AcadosKinematicNMPC(KinematicNMPC):
         config: NMPCConfig | None = None,
         qp_solver: str = "FULL_CONDENSING_QPOASES",
         cache_dir: str | os.PathLike[str] | None = None,
-        **model_options: Any,
     ) -> None:
+        self._use_acados(qp_solver, cache_dir)
+        KinematicNMPC.__init__(self, reference, vehicle, config)
+
+    def _use_acados(self, qp_solver: str, cache_dir: str | os.PathLike[str] | None) -> None:
+        """Import acados and take the QP solver and the cache folder, before the model is built."""
         self._acados, self._template = import_acados()
         if qp_solver not in QP_SOLVERS:
             raise ParameterError(f"qp_solver must be one of {QP_SOLVERS}, got {qp_solver!r}")
@@ -159,7 +163,6 @@ class AcadosKinematicNMPC(KinematicNMPC):
         self._cache_root = Path(cache_dir) if cache_dir is not None else acados_cache_dir()
         self.built = False
         self.last_solve_time = math.nan
-        super().__init__(reference, vehicle, config, **model_options)
 
     # ------------------------------------------------------------------ build
     def _build_solver(self) -> Any:

@@ -12,8 +12,15 @@ alike on every track here, the exact one costs about twice the time.
 
 from __future__ import annotations
 
+import os
+from typing import TYPE_CHECKING
+
 from rkmpc.control.nonlinear.acados import AcadosKinematicNMPC
-from rkmpc.control.nonlinear.nmpc import DynamicNMPC
+from rkmpc.control.nonlinear.nmpc import DynamicNMPC, NMPCConfig
+
+if TYPE_CHECKING:
+    from rkmpc.track.reference import Reference
+    from rkmpc.vehicle.params import VehicleParams
 
 __all__ = ["AcadosDynamicNMPC"]
 
@@ -46,3 +53,15 @@ class AcadosDynamicNMPC(AcadosKinematicNMPC, DynamicNMPC):
     name = "nmpc-acados-dynamic"
     default_hessian = "gauss-newton"
     model_tag = "dyn"
+
+    def __init__(
+        self,
+        reference: Reference,
+        vehicle: VehicleParams,
+        config: NMPCConfig | None = None,
+        qp_solver: str = "FULL_CONDENSING_QPOASES",
+        cache_dir: str | os.PathLike[str] | None = None,
+        min_speed: float | None = None,
+    ) -> None:
+        self._use_acados(qp_solver, cache_dir)
+        DynamicNMPC.__init__(self, reference, vehicle, config, min_speed)
