@@ -63,3 +63,21 @@ def test_training_progress_is_told_with_an_estimate(builtin_scenario, monkeypatc
     progress = [m for m in messages if m.startswith("training the residual model of rkmpc: epoch ")]
     assert 10 <= len(progress) <= 12
     assert "left" in progress[1] and progress[-1].endswith("epoch 20/20, loss 0.0476, done")
+
+
+def test_the_model_cache_key_follows_every_source_of_the_package(tmp_path):
+    # A change anywhere in the code (here the simulation floor, not learning or vehicle) trains
+    # again: a model another code made is never reused.
+    from rkmpc.experiments.models import source_hash
+
+    for sub in ("learning", "vehicle", "sim", "core"):
+        (tmp_path / sub).mkdir()
+        (tmp_path / sub / "a.py").write_text(f"X = '{sub}'\n")
+    before = source_hash(tmp_path)
+    assert source_hash(tmp_path) == before and len(before) == 16
+    (tmp_path / "sim" / "a.py").write_text("X = 'changed'\n")
+    assert source_hash(tmp_path) != before
+    (tmp_path / "sim" / "a.py").rename(tmp_path / "sim" / "b.py")
+    changed = source_hash(tmp_path)
+    (tmp_path / "sim" / "b.py").write_text("X = 'sim'\n")
+    assert source_hash(tmp_path) not in (before, changed)  # a renamed file counts too

@@ -35,21 +35,26 @@ from rkmpc.sim.build import check_model
 from rkmpc.sim.collect import collect, collect_excitation, excitation_lateral_accel
 from rkmpc.sim.scenario import Scenario
 
-__all__ = ["ModelPlan", "excitation_model", "learn_models", "make_model"]
+__all__ = ["ModelPlan", "excitation_model", "learn_models", "make_model", "source_hash"]
 
 Say = Callable[[str], None]
 
 
+def source_hash(root: Path) -> str:
+    """Hash (16 hex digits) of every Python source under ``root``, by relative path and content."""
+    digest = hashlib.sha256()
+    for path in sorted(root.rglob("*.py")):
+        digest.update(str(path.relative_to(root)).encode())
+        digest.update(path.read_bytes())
+    return digest.hexdigest()[:16]
+
+
 @functools.cache
 def _code_hash() -> str:
-    """Hash of the sources that shape training data and models (vehicle and learning packages)."""
-    root = Path(rkmpc.core.__file__).parent.parent
-    digest = hashlib.sha256()
-    for sub in ("learning", "vehicle"):
-        for path in sorted((root / sub).rglob("*.py")):
-            digest.update(str(path.relative_to(root / sub)).encode())
-            digest.update(path.read_bytes())
-    return digest.hexdigest()[:16]
+    """Hash of the package's sources: a model depends on the data collection (the plant, the
+    controllers that drive the laps, the estimator) and the training, most of the package, so any
+    change of the code trains again rather than reuse a model another code made."""
+    return source_hash(Path(rkmpc.core.__file__).parent.parent)
 
 
 def _record(learned: Learned, **extra: Any) -> ModelRecord:
