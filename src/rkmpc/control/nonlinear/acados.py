@@ -151,11 +151,6 @@ class AcadosKinematicNMPC(KinematicNMPC):
         qp_solver: str = "FULL_CONDENSING_QPOASES",
         cache_dir: str | os.PathLike[str] | None = None,
     ) -> None:
-        self._use_acados(qp_solver, cache_dir)
-        KinematicNMPC.__init__(self, reference, vehicle, config)
-
-    def _use_acados(self, qp_solver: str, cache_dir: str | os.PathLike[str] | None) -> None:
-        """Import acados and take the QP solver and the cache folder, before the model is built."""
         self._acados, self._template = import_acados()
         if qp_solver not in QP_SOLVERS:
             raise ParameterError(f"qp_solver must be one of {QP_SOLVERS}, got {qp_solver!r}")
@@ -163,6 +158,7 @@ class AcadosKinematicNMPC(KinematicNMPC):
         self._cache_root = Path(cache_dir) if cache_dir is not None else acados_cache_dir()
         self.built = False
         self.last_solve_time = math.nan
+        super().__init__(reference, vehicle, config)
 
     # ------------------------------------------------------------------ build
     def _build_solver(self) -> Any:

@@ -12,15 +12,8 @@ alike on every track here, the exact one costs about twice the time.
 
 from __future__ import annotations
 
-import os
-from typing import TYPE_CHECKING
-
 from rkmpc.control.nonlinear.acados import AcadosKinematicNMPC
-from rkmpc.control.nonlinear.nmpc import DynamicNMPC, NMPCConfig
-
-if TYPE_CHECKING:
-    from rkmpc.track.reference import Reference
-    from rkmpc.vehicle.params import VehicleParams
+from rkmpc.control.nonlinear.nmpc import DynamicNMPC
 
 __all__ = ["AcadosDynamicNMPC"]
 
@@ -33,9 +26,9 @@ class AcadosDynamicNMPC(AcadosKinematicNMPC, DynamicNMPC):
 
     Parameters
     ----------
-    reference, vehicle, min_speed
-        As :class:`DynamicNMPC`: the path and speed profile, the nominal car, and the speed floor
-        (m/s) of the model's slip denominators.
+    reference, vehicle
+        As :class:`DynamicNMPC`: the path and speed profile, and the nominal car (whose
+        ``blend_speed_high`` is the speed floor of the model's slip denominators).
     config : NMPCConfig, optional
         Weights, horizon, period (s), RK4 sub-steps (2 by default) and Hessian
         (Gauss-Newton by default).
@@ -53,15 +46,3 @@ class AcadosDynamicNMPC(AcadosKinematicNMPC, DynamicNMPC):
     name = "nmpc-acados-dynamic"
     default_hessian = "gauss-newton"
     model_tag = "dyn"
-
-    def __init__(
-        self,
-        reference: Reference,
-        vehicle: VehicleParams,
-        config: NMPCConfig | None = None,
-        qp_solver: str = "FULL_CONDENSING_QPOASES",
-        cache_dir: str | os.PathLike[str] | None = None,
-        min_speed: float | None = None,
-    ) -> None:
-        self._use_acados(qp_solver, cache_dir)
-        DynamicNMPC.__init__(self, reference, vehicle, config, min_speed)
