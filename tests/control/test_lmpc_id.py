@@ -13,6 +13,7 @@ from rkmpc.estimation.steering import SteeringModel, WheelAnglePropagator
 from rkmpc.learning.identification import IdentifiedModel
 from rkmpc.learning.servo_fit import lag_delay_weights
 from rkmpc.sim.closed_loop import SimConfig, simulate
+from rkmpc.vehicle.plants.dynamic import DynamicPlant
 from rkmpc.vehicle.registry import make_plant
 
 
@@ -83,7 +84,7 @@ def test_on_a_delay_dominated_servo_the_delay_states_beat_a_lag_folded_from_the_
     params = replace(sc.vehicle, steering=replace(sc.vehicle.steering, time_constant=0.03))
 
     def lateral_error(model: IdentifiedModel) -> float:
-        plant = make_plant("f1tenth", params=params, input_delay=0.12)
+        plant = DynamicPlant(params, input_delay=0.12)
         ctrl = IdentifiedLMPC(sc.reference, sc.vehicle, model)
         result = simulate(plant, ctrl, sc.track, sc.reference, SimConfig(dt=sc.dt, max_time=12.0))
         assert result.outcome == "timeout"  # still on the track
