@@ -80,17 +80,22 @@ class Evaluation:
         }
 
     def figure(self) -> Any:
-        """Position and heading error against the horizon, one line per model."""
+        """Position and heading error against the horizon, one line per model and the exact inputs."""
         from rkmpc.analysis.prediction_plots import plot_prediction_errors
 
         labels = {self.label(row): row.file or row.model for row in self.rows}
         steps = sorted({row.horizon_steps for row in self.rows})
 
+        exact = {row.horizon_steps: row for row in self.exact_inputs}
+
         def series(field: str) -> dict[str, list[float]]:
-            return {
+            out = {
                 label: [float(getattr(self.row(key, h), field)) for h in steps]
                 for label, key in labels.items()
             }
+            if set(steps) <= set(exact):
+                out["exact inputs"] = [float(getattr(exact[h], field)) for h in steps]
+            return out
 
         return plot_prediction_errors(
             [h * self.dt for h in steps],
