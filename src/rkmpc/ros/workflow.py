@@ -79,6 +79,9 @@ class _Run:
     def start(self, name: str, target: Callable[..., int], args: tuple[Any, ...], what: str) -> Any:
         """Start ``target(*args)`` in a process of its own (spawned: nothing of this one is inherited)."""
         log = self.out / "logs" / f"{name}.log"
+        # Made here, not only in the child: a stage stopped before its process got going (another
+        # failed first) still has its (empty) log, which errors and users read.
+        log.touch()
         self.commands.append(what)
         process = multiprocessing.get_context("spawn").Process(
             target=child_process, args=(name, target, args, str(log), self.env), name=name
