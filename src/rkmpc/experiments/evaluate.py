@@ -268,7 +268,7 @@ def evaluate(
         errors = _errors(_predict(kind, model, own, starts, horizon, vehicle), truth_pose, truth_speed)
         rows += [evaluation_row(kind, name, h, data.dt, errors, starts.size) for h in steps]
     truth = "the state estimator's smoothed estimates" if estimated else "the data as recorded"
-    bound = _errors(_exact_inputs(reference, starts, horizon, vehicle.wheelbase), truth_pose, truth_speed)
+    exact = _errors(_exact_inputs(reference, starts, horizon, vehicle.wheelbase), truth_pose, truth_speed)
     return Evaluation(
         rows=rows,
         transitions=len(data),
@@ -277,5 +277,5 @@ def evaluate(
         truth=truth,
         source=source,
         models={name: kinds[name] for name in models},
-        exact_inputs=[evaluation_row("exact-inputs", None, h, data.dt, bound, starts.size) for h in steps],
+        exact_inputs=[evaluation_row("exact-inputs", None, h, data.dt, exact, starts.size) for h in steps],
     )

@@ -85,7 +85,6 @@ class Evaluation:
 
         labels = {self.label(row): row.file or row.model for row in self.rows}
         steps = sorted({row.horizon_steps for row in self.rows})
-
         exact = {row.horizon_steps: row for row in self.exact_inputs}
 
         def series(field: str) -> dict[str, list[float]]:
@@ -93,7 +92,7 @@ class Evaluation:
                 label: [float(getattr(self.row(key, h), field)) for h in steps]
                 for label, key in labels.items()
             }
-            if set(steps) <= set(exact):
+            if exact:  # made by evaluate at the same horizons as the models
                 out["exact inputs"] = [float(getattr(exact[h], field)) for h in steps]
             return out
 
@@ -116,23 +115,14 @@ class Evaluation:
             "|---|---|---|---|---|---|---|---|---|",
         ]
         for r in self.rows:
-            base = self.row("kinematic", r.horizon_steps)
-            ratio = r.position_mean_m / base.position_mean_m if base.position_mean_m > 0 else math.nan
-            p95 = r.position_p95_m / base.position_p95_m if base.position_p95_m > 0 else math.nan
             lines.append(
                 f"| {r.model} | {r.file or '-'} | {r.horizon_steps} | {r.horizon_s:.2f} | "
                 f"{r.position_mean_m:.4f} | "
-                f"{r.position_p95_m:.4f} | {ratio:.2f} / {p95:.2f} | {r.heading_mean_rad:.4f} | "
+                f"{r.position_p95_m:.4f} | {self._vs_kinematic(r)} | {r.heading_mean_rad:.4f} | "
                 f"{r.speed_mean_m_s:.3f} |"
             )
         if self.exact_inputs:
-            cells = []
-            for r in self.exact_inputs:
-                base = self.row("kinematic", r.horizon_steps)
-                cells.append(
-                    f"{r.horizon_steps} steps {r.position_mean_m / base.position_mean_m:.2f} / "
-                    f"{r.position_p95_m / base.position_p95_m:.2f}"
-                )
+            cells = [f"{r.horizon_steps} steps {self._vs_kinematic(r)}" for r in self.exact_inputs]
             lines += [
                 "",
                 "Exact inputs (the kinematic model driven by the inputs that reproduce each recorded "
@@ -140,6 +130,13 @@ class Evaluation:
                 "mean / p95 vs kinematic): " + ", ".join(cells) + ".",
             ]
         return "\n".join(lines) + "\n"
+
+    def _vs_kinematic(self, r: EvaluationRow) -> str:
+        """``mean / p95``: the row's position errors over the kinematic model's at its horizon."""
+        base = self.row("kinematic", r.horizon_steps)
+        ratio = r.position_mean_m / base.position_mean_m if base.position_mean_m > 0 else math.nan
+        p95 = r.position_p95_m / base.position_p95_m if base.position_p95_m > 0 else math.nan
+        return f"{ratio:.2f} / {p95:.2f}"
 
 
 def evaluation_row(
@@ -150,7 +147,8 @@ def evaluation_row(
     errors: tuple[np.ndarray, np.ndarray, np.ndarray],
     samples: int,
 ) -> EvaluationRow:
-    """The row of one model at ``horizon`` steps from its errors (:func:`_errors`)."""
+    """The row of one model at ``horizon`` steps from its errors: position (m), heading (rad) and
+    speed (m/s), each of shape (starts, horizons)."""
     position, heading, speed = (e[:, horizon - 1] for e in errors)
     return EvaluationRow(
         model=kind,

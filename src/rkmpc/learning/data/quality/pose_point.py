@@ -69,7 +69,6 @@ def pose_point(data: TransitionDataset, expected: float | None = None) -> PosePo
         x = x[:, :2]
     y = direction[moving]
     keep = np.ones(y.size, dtype=bool)
-    coef = np.zeros(x.shape[1])
     for _ in range(ROUNDS + 1):
         coef = np.linalg.lstsq(x[keep], y[keep], rcond=None)[0]
         residual = y - x @ coef

@@ -47,7 +47,7 @@ def findings(report: QualityReport, dead_columns: tuple[str, ...] = ()) -> tuple
         if u.suspicious and not (scaled and u.signal == "speed" and u.match is None)
     ]
     point = report.pose_point
-    if point is not None and point.consistent is False and point.expected_m is not None:
+    if point is not None and point.consistent is False:  # a verdict: expected_m is known
         out.append(
             f"the pose moves like a point {point.offset_m:.3f} m ahead of the rear axle, where the "
             f"centre of gravity the data should hold is {point.expected_m:.3f} m ahead: check which "
