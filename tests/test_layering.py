@@ -41,6 +41,7 @@ CONFINED = {
     "matplotlib": ("rkmpc.analysis.",),
     "rich": ("rkmpc.cli", "rkmpc.analysis.tables"),
     "joblib": ("rkmpc.experiments.parallel",),
+    "threadpoolctl": ("rkmpc.learning.learn",),
     "gymnasium": ("rkmpc.envs.f1tenth",),
     "rosbags": ("rkmpc.learning.data.bags.",),
     # ROS 2 (the optional ros extra): only the node modules; the core package never needs it.

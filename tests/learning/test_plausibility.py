@@ -86,3 +86,32 @@ def test_training_refuses_before_fitting():
     obs[:, 3] = 0.0
     with pytest.raises(InputFileError, match="stood still"):
         train_model(_data(obs), L, TrainConfig(kind="residual"), source="laps.npz")
+
+
+def test_learning_runs_on_one_blas_thread_and_restores_it(monkeypatch):
+    """A threaded BLAS sums in a core-dependent order: every model is learned on one thread."""
+    threadpoolctl = pytest.importorskip("threadpoolctl")
+    from rkmpc.learning import learn as learn_module
+    from rkmpc.learning.contract import Provenance
+    from rkmpc.learning.recipes import recipe_for
+    from rkmpc.vehicle.params import f1tenth
+
+    def blas_threads() -> set[int]:
+        return {i["num_threads"] for i in threadpoolctl.threadpool_info() if i["user_api"] == "blas"}
+
+    seen: list[set[int]] = []
+
+    def spy(data, vehicle):
+        seen.append(blas_threads())
+        raise RuntimeError("stop after the check")
+
+    before = blas_threads()
+    with threadpoolctl.threadpool_limits(limits=2, user_api="blas"):
+        monkeypatch.setattr(learn_module, "identify", spy)
+        recipe = recipe_for("lmpc-id")
+        assert recipe is not None
+        with pytest.raises(RuntimeError, match="stop after"):
+            learn_module.learn(recipe, _data(_drive()), made_for=Provenance(dt=DT, wheelbase=L), vehicle=f1tenth())
+        inside = blas_threads()
+    assert seen == [{1}]
+    assert inside == {2} or inside == before  # the caller's setting is back (a 1-core BLAS stays at 1)

@@ -7,6 +7,11 @@ parameters (:func:`rkmpc.learning.identification.identify`, and the tyres with
 checks of the data (the contract: car, period, wheelbase; and that the data can be learned
 from), and returns a :class:`Learned` that :func:`save_learned` writes to the model file of its
 kind. ``rkmpc train``, the comparison, the studies and the on-car workflow all learn here.
+
+Learning runs with numpy's BLAS on :data:`~rkmpc.learning.koopman.settings.TRAINING_THREADS` (1)
+thread, as torch does: a threaded BLAS sums in an order that depends on the machine's cores, and a
+least-squares fit of 50,000 samples then differs in its last digit, enough to change the laps a
+model drives.
 """
 
 from __future__ import annotations
@@ -15,6 +20,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
+
+from threadpoolctl import threadpool_limits
 
 from rkmpc.learning.contract import CONTRACT_KEY, Provenance
 from rkmpc.learning.data.augmentation import AugmentConfig
@@ -25,6 +32,7 @@ from rkmpc.learning.io import save_identified
 from rkmpc.learning.koopman.model import KoopmanModel
 from rkmpc.learning.pipeline import TrainConfig, TrainReport, train_model
 from rkmpc.learning.recipes import KoopmanLearner, Recipe
+from rkmpc.learning.koopman.settings import TRAINING_THREADS
 from rkmpc.learning.tyre_fit import identify_tyres
 from rkmpc.vehicle.params import VehicleParams
 
@@ -106,6 +114,37 @@ def learn(
     InputFileError
         For data no model should be learned from (:func:`rkmpc.learning.data.plausibility.check_learnable`).
     """
+    with threadpool_limits(limits=TRAINING_THREADS, user_api="blas"):
+        return _learn(
+            recipe,
+            data,
+            made_for=made_for,
+            vehicle=vehicle,
+            seed=seed,
+            epochs=epochs,
+            model=model,
+            augment=augment,
+            on_epoch=on_epoch,
+            allow_mismatch=allow_mismatch,
+            source=source,
+        )
+
+
+def _learn(
+    recipe: Recipe,
+    data: TransitionDataset,
+    *,
+    made_for: Provenance,
+    vehicle: VehicleParams,
+    seed: int,
+    epochs: int | None,
+    model: KoopmanModel | None,
+    augment: AugmentConfig | None,
+    on_epoch: Callable[[int, float], None] | None,
+    allow_mismatch: bool,
+    source: str,
+) -> Learned:
+    """:func:`learn`'s work, on one BLAS thread."""
     wheelbase = vehicle.wheelbase
     if isinstance(recipe.learner, KoopmanLearner):
         learner = recipe.learner
