@@ -111,7 +111,9 @@ def test_learning_runs_on_one_blas_thread_and_restores_it(monkeypatch):
         recipe = recipe_for("lmpc-id")
         assert recipe is not None
         with pytest.raises(RuntimeError, match="stop after"):
-            learn_module.learn(recipe, _data(_drive()), made_for=Provenance(dt=DT, wheelbase=L), vehicle=f1tenth())
+            learn_module.learn(
+                recipe, _data(_drive()), made_for=Provenance(dt=DT, wheelbase=L), vehicle=f1tenth()
+            )
         inside = blas_threads()
     assert seen == [{1}]
     assert inside == {2} or inside == before  # the caller's setting is back (a 1-core BLAS stays at 1)

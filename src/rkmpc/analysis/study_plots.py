@@ -179,6 +179,19 @@ def _values(values: Sequence[float | None]) -> np.ndarray:
     return np.array([np.nan if v is None else v for v in values], dtype=float)
 
 
+#: Most tick labels on a pace axis: a ladder of 20 paces, each named by two numbers, overprints.
+MAX_PACE_TICKS = 10
+
+
+def _thinned(values: Sequence[float], most: int) -> list[float]:
+    """Every k-th of ``values`` (k the least that leaves at most ``most``), always the last."""
+    step = max(1, -(-len(values) // most))
+    kept = list(values[::step])
+    if values and kept[-1] != values[-1]:
+        kept[-1] = values[-1]
+    return kept
+
+
 def plot_pace_study(series: Sequence[PaceSeries], title: str) -> Figure:
     """Lap time and mean lateral error of the clean laps against the pace, one line per controller and track.
 
@@ -209,8 +222,9 @@ def plot_pace_study(series: Sequence[PaceSeries], title: str) -> Figure:
             ax_lat.plot(
                 x[s.best_index], _values(s.lateral)[s.best_index], marker="*", markersize=11, color=color
             )
+    shown = _thinned(sorted(ticks), MAX_PACE_TICKS)
     for ax in (ax_time, ax_lat):
-        ax.set_xticks(sorted(ticks), [ticks[k] for k in sorted(ticks)])
+        ax.set_xticks(shown, [ticks[k] for k in shown])
         ax.set_xlabel("pace: lateral limit (m/s$^2$) / top speed (m/s)")
         ax.grid(True, alpha=0.3)
     ax_time.set_ylabel("lap time / reference lap time at the first pace" if relative else "lap time (s)")

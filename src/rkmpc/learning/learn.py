@@ -30,9 +30,9 @@ from rkmpc.learning.data.plausibility import check_learnable
 from rkmpc.learning.identification import IdentifiedModel, identify
 from rkmpc.learning.io import save_identified
 from rkmpc.learning.koopman.model import KoopmanModel
+from rkmpc.learning.koopman.settings import TRAINING_THREADS
 from rkmpc.learning.pipeline import TrainConfig, TrainReport, train_model
 from rkmpc.learning.recipes import KoopmanLearner, Recipe
-from rkmpc.learning.koopman.settings import TRAINING_THREADS
 from rkmpc.learning.tyre_fit import identify_tyres
 from rkmpc.vehicle.params import VehicleParams
 

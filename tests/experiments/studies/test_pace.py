@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -383,3 +383,27 @@ def test_steps_read_back_from_the_result_file_are_the_steps(synthetic):
     for run, record in zip(result.runs, data["runs"], strict=True):
         assert [PaceStep.from_json(s) for s in record["steps"]] == run.steps
     assert any(s.data is not None and s.data.recorder_pace is not None for s in result.runs[1].steps)
+
+
+def test_a_long_ladder_names_at_most_ten_paces_on_its_axis_first_and_last_included():
+    from rkmpc.analysis.study_plots import MAX_PACE_TICKS, PaceSeries
+
+    paces = [(4.0 + 0.5 * i, 3.0 + 0.25 * i) for i in range(20)]
+    series = PaceSeries(
+        controller="lmpc",
+        track="builtin",
+        paces=paces,
+        lap_time=[30.0 - 0.5 * i for i in range(20)],
+        lateral=[0.01 + 0.001 * i for i in range(20)],
+        reference_lap_time=30.0,
+        best_index=19,
+    )
+    fig = plot_pace_study([series], "t")
+    for ax in fig.axes:
+        ticks = list(ax.get_xticks())
+        assert 2 <= len(ticks) <= MAX_PACE_TICKS
+        assert ticks[0] == 4.0 and ticks[-1] == paces[-1][0]
+    short = plot_pace_study(
+        [replace(series, paces=paces[:5], lap_time=[30.0] * 5, lateral=[0.01] * 5, best_index=0)], "t"
+    )
+    assert list(short.axes[0].get_xticks()) == [p[0] for p in paces[:5]]
