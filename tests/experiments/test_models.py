@@ -81,3 +81,41 @@ def test_the_model_cache_key_follows_every_source_of_the_package(tmp_path):
     changed = source_hash(tmp_path)
     (tmp_path / "sim" / "b.py").write_text("X = 'sim'\n")
     assert source_hash(tmp_path) not in (before, changed)  # a renamed file counts too
+
+
+def _spun_laps() -> TransitionDataset:
+    """Laps whose next observations do not follow from the speeds (a car that spun): refused."""
+    data = _held_wheel(200)
+    jumbled = np.random.default_rng(0).permutation(len(data))
+    return TransitionDataset(
+        data.obs, data.command, data.next_obs[jumbled], data.dt, data.episode, data.metadata
+    )
+
+
+def test_refused_laps_leave_that_controller_undriven_and_the_others_reported(monkeypatch, tmp_path):
+    """Laps that cannot be learned from: the LMPC's figures stand, and the rest says why it is missing."""
+    from rkmpc.experiments.compare import CompareConfig, compare
+    from rkmpc.experiments.report import write_comparison
+    from rkmpc.experiments.results import NOT_LEARNED, TrackResult
+
+    monkeypatch.setattr(models, "collect", lambda *args, **kwargs: _spun_laps())
+    messages: list[str] = []
+    logs: dict = {}
+    config = CompareConfig(track="oval", controllers=("lmpc", "lmpc-id"), use_cache=False)
+    result = compare(config, logs=logs, say=messages.append)
+    lmpc, ident = result.controllers["lmpc"], result.controllers["lmpc-id"]
+    assert lmpc.outcome == "completed" and lmpc.metrics["lateral_error_mean_m"] > 0
+    assert ident.outcome == NOT_LEARNED and "consistency check" in (ident.failure or "")
+    assert not ident.metrics["completed"] and ident.metrics["steps"] == 0
+    assert ident.metrics["lateral_error_mean_m"] is None and "lmpc-id" not in logs
+    assert any(m.startswith("warning: lmpc-id not learned") for m in messages)
+    assert not any(m == "driving lmpc-id" for m in messages)
+    assert "consistency check" in (result.training.models["lmpc-id"].refused or "")
+    back = TrackResult.from_json(result.to_json())
+    assert back.controllers["lmpc-id"].outcome == NOT_LEARNED
+    assert back.training.models["lmpc-id"].refused == result.training.models["lmpc-id"].refused
+    write_comparison(tmp_path, result, logs, config.scenario().track)
+    assert (
+        "- `lmpc-id` did not drive, not learned: the data set [next_obs]"
+        in (tmp_path / "table.md").read_text()
+    )

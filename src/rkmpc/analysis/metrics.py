@@ -77,6 +77,26 @@ class LapMetrics(Mapping[str, Any]):
         return {**{key: getattr(self, key) for key in METRIC_KEYS}, "status_counts": self.status_counts}
 
     @classmethod
+    def not_driven(cls) -> LapMetrics:
+        """The metrics of a run that never started: not completed, no steps, every error None."""
+        return cls(
+            completed=False,
+            progress=0.0,
+            lap_time_s=None,
+            lateral_error_mean_m=None,
+            lateral_error_max_m=None,
+            heading_error_mean_rad=None,
+            steer_rate_mean_rad_s=None,
+            command_rate_mean_rad_s=None,
+            solve_ms_mean=None,
+            solve_ms_p99=None,
+            solve_ms_max=None,
+            fallback_count=0,
+            steps=0,
+            lateral_accel_max_m_s2=None,
+        )
+
+    @classmethod
     def from_json(cls, data: Mapping[str, Any]) -> LapMetrics:
         """Metrics read back from :meth:`to_json` output (extra keys are ignored)."""
         # Files written before the commanded-steering rate was measured lack only that key.

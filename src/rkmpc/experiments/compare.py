@@ -5,7 +5,9 @@ KMPC model is trained on random-excitation data of the car (it does not depend
 on the track, and is cached by content hash so that it is trained once per car
 and setting); see :mod:`rkmpc.experiments.models`. Every controller then
 drives one flying lap from the same start; with a fault, each drives a second
-lap with the fault and the effect is classified (:func:`fault_effect`).
+lap with the fault and the effect is classified (:func:`fault_effect`). A learned controller whose
+laps of data were refused (the LMPC spun in them) does not drive: its run is
+:data:`~rkmpc.experiments.results.NOT_LEARNED` with the reason, and the others' figures stand.
 """
 
 from __future__ import annotations
@@ -23,7 +25,7 @@ from rkmpc.core.jsonutil import to_json_ready
 from rkmpc.core.validation import is_integer, is_positive_number
 from rkmpc.core.versions import versions
 from rkmpc.experiments.models import ModelPlan, learn_models
-from rkmpc.experiments.results import ControllerRun, FaultOutcome, TrackResult
+from rkmpc.experiments.results import NOT_LEARNED, ControllerRun, FaultOutcome, TrackResult
 from rkmpc.experiments.runs import run_controller
 from rkmpc.sim.closed_loop import SimResult
 from rkmpc.sim.faults import DEFAULT_NOISE, get_fault
@@ -209,6 +211,12 @@ def compare(
         return ControllerRun(metrics=metrics, outcome=result.outcome, failure=result.failure), metrics
 
     for name in config.controllers:
+        refused = training.models[name].refused if name in training.models else None
+        if refused is not None:
+            runs[name] = ControllerRun(metrics=LapMetrics.not_driven(), outcome=NOT_LEARNED, failure=refused)
+            if config.fault is not None:
+                faulted[name], effects[name] = runs[name], "not learned"
+            continue
         if say is not None:
             say(f"driving {name}")
         runs[name], nominal = drive(name, RunSpec(name, laps=config.run_laps, seed=seed, noise=noise))

@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any
 
 import rkmpc.core
-from rkmpc.core.errors import ParameterError
+from rkmpc.core.errors import InputFileError, ParameterError
 from rkmpc.core.progress import EpochProgress
 from rkmpc.core.versions import RKMPC_VERSION
 from rkmpc.experiments.cache import ModelCache
@@ -250,7 +250,9 @@ def learn_models(
     Returns
     -------
     models : dict
-        The model of each learned controller, by controller name.
+        The model of each learned controller, by controller name; none for a controller whose
+        on-track data were refused (:class:`~rkmpc.core.errors.InputFileError` of the checks of
+        the data), whose record then says why (``refused``).
     training : TrainingRecord
         The data and a record per model (with the contract warnings of a model file used on
         request with another car or period).
@@ -292,9 +294,22 @@ def learn_models(
         key = {"data_hash": data_record.data_hash}
         for name, recipe in on_track:
             tell(f"learning the {recipe.kind} model of {name}")
-            models[name], records[name] = make_model(
-                recipe, scenario, lambda: data, key, seed=plan.seed, epochs=plan.epochs, cache=cache, say=say
-            )
+            try:
+                models[name], records[name] = make_model(
+                    recipe,
+                    scenario,
+                    lambda: data,
+                    key,
+                    seed=plan.seed,
+                    epochs=plan.epochs,
+                    cache=cache,
+                    say=say,
+                )
+            except InputFileError as exc:
+                # Laps no model should be learned from (the LMPC spun in them, say): this controller
+                # has no model and does not drive; the others still do, and the record says why.
+                records[name] = ModelRecord(kind=recipe.kind, refused=str(exc))
+                tell(f"warning: {name} not learned, its data were refused: {exc}")
     for name, recipe in to_learn:
         if recipe.data is DataSource.EXCITATION:
             tell(f"{name} model: {plan.excitation_samples} random-excitation samples (learned once, cached)")

@@ -15,7 +15,7 @@ from pathlib import Path
 from rkmpc.analysis.plots import plot_runs, plot_solve_times, save_figure
 from rkmpc.analysis.tables import fault_table, markdown_table
 from rkmpc.core.io import write_json_atomic, write_text_atomic
-from rkmpc.experiments.results import TrackResult
+from rkmpc.experiments.results import NOT_LEARNED, TrackResult
 from rkmpc.sim.log import StepLog
 from rkmpc.track.track import Track
 
@@ -41,6 +41,9 @@ def write_comparison(out: Path, result: TrackResult, logs: Mapping[str, StepLog]
     """Write ``results.json``, ``table.md``, ``plot.png``, ``solve_times.png`` (and ``plot_fault.png``)."""
     write_json_atomic(out / "results.json", result.to_json())
     text = markdown_table(result.metrics(), lateral_limit=lateral_limit_of(result))
+    unlearned = [(n, run.failure) for n, run in result.controllers.items() if run.outcome == NOT_LEARNED]
+    if unlearned:
+        text += "\n" + "".join(f"- `{name}` did not drive, not learned: {why}\n" for name, why in unlearned)
     if result.fault is not None:
         nominal = result.metrics()
         faulted = {name: run.metrics for name, run in result.fault.runs.items()}

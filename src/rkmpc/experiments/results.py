@@ -17,7 +17,18 @@ from rkmpc.analysis.metrics import LapMetrics
 from rkmpc.core.jsonutil import to_json_ready
 from rkmpc.learning.identification import IdentifiedModel
 
-__all__ = ["ControllerRun", "DataRecord", "FaultOutcome", "ModelRecord", "TrackResult", "TrainingRecord"]
+__all__ = [
+    "NOT_LEARNED",
+    "ControllerRun",
+    "DataRecord",
+    "FaultOutcome",
+    "ModelRecord",
+    "TrackResult",
+    "TrainingRecord",
+]
+
+#: The outcome of a learned controller whose data were refused: it did not drive.
+NOT_LEARNED = "not_learned"
 
 
 @dataclass(frozen=True)
@@ -29,9 +40,11 @@ class ControllerRun:
     metrics : LapMetrics
         The lap metrics.
     outcome : str
-        How the run ended (:data:`rkmpc.sim.closed_loop.OUTCOMES`).
+        How the run ended (:data:`rkmpc.sim.closed_loop.OUTCOMES`), or :data:`NOT_LEARNED` for a
+        learned controller that was not driven because its data were refused.
     failure : str or None
-        The plant's message when ``outcome`` is ``"plant_failure"``, else None.
+        The plant's message when ``outcome`` is ``"plant_failure"``, why the data were refused
+        when it is :data:`NOT_LEARNED`, else None.
     """
 
     metrics: LapMetrics
@@ -91,7 +104,8 @@ class ModelRecord:
     parameters; a trained Koopman model its sample counts, held-out errors, the
     state range it clips to, and whether it came from the cache. A model used on
     request with another car, period or track scale than it was made with records
-    the warnings (``contract_warnings``).
+    the warnings (``contract_warnings``). A model that could not be learned because its data were
+    refused (:func:`rkmpc.learning.data.plausibility.check_learnable`) records why (``refused``).
     """
 
     kind: str | None = None
@@ -110,6 +124,7 @@ class ModelRecord:
     cached: bool | None = None
     cache_key: str | None = None
     contract_warnings: list[str] | None = None
+    refused: str | None = None
 
     #: Fields written even when None (a trained model's held-out errors may be missing).
     _ALWAYS = ("heldout_error_step1", "heldout_error_last", "cache_key")
