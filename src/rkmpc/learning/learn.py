@@ -115,75 +115,47 @@ def learn(
         For data no model should be learned from (:func:`rkmpc.learning.data.plausibility.check_learnable`).
     """
     with threadpool_limits(limits=TRAINING_THREADS, user_api="blas"):
-        return _learn(
-            recipe,
-            data,
-            made_for=made_for,
-            vehicle=vehicle,
-            seed=seed,
-            epochs=epochs,
-            model=model,
-            augment=augment,
-            on_epoch=on_epoch,
-            allow_mismatch=allow_mismatch,
-            source=source,
+        wheelbase = vehicle.wheelbase
+        if isinstance(recipe.learner, KoopmanLearner):
+            learner = recipe.learner
+            config = TrainConfig(
+                kind=recipe.kind,
+                augment=augment if augment is not None else learner.augment(seed),
+                model=model if model is not None else learner.default_model(seed, epochs),
+                dt=made_for.dt,
+            )
+            fitted, report = train_model(
+                data,
+                wheelbase,
+                config,
+                on_epoch=on_epoch,
+                vehicle=made_for.vehicle,
+                allow_mismatch=allow_mismatch,
+                source=source,
+            )
+            warned = tuple(fitted.metadata_["contract_warnings"])
+            return Learned(
+                recipe=recipe, model=fitted, report=report, warnings=warned, metadata=fitted.metadata_
+            )
+        warned = data.contract.check(made_for, source=source, made="recorded", allow_mismatch=allow_mismatch)
+        check_learnable(data, wheelbase, source)
+        ident = identify(data, vehicle)
+        if recipe.learner.tyres:
+            ident = replace(ident, tyres=identify_tyres(data, vehicle, ident))
+        contract = replace(data.contract, dt=data.dt, wheelbase=wheelbase, recorded=True)
+        metadata = {
+            "data_hash": data.content_hash(),
+            "data_metadata": data.metadata,
+            CONTRACT_KEY: contract.to_json(),
+            "contract_warnings": list(warned),
+        }
+        return Learned(
+            recipe=recipe,
+            model=ident,
+            report=None,
+            warnings=(*warned, *ident.warnings, *(ident.tyres.warnings if ident.tyres else ())),
+            metadata=metadata,
         )
-
-
-def _learn(
-    recipe: Recipe,
-    data: TransitionDataset,
-    *,
-    made_for: Provenance,
-    vehicle: VehicleParams,
-    seed: int,
-    epochs: int | None,
-    model: KoopmanModel | None,
-    augment: AugmentConfig | None,
-    on_epoch: Callable[[int, float], None] | None,
-    allow_mismatch: bool,
-    source: str,
-) -> Learned:
-    """:func:`learn`'s work, on one BLAS thread."""
-    wheelbase = vehicle.wheelbase
-    if isinstance(recipe.learner, KoopmanLearner):
-        learner = recipe.learner
-        config = TrainConfig(
-            kind=recipe.kind,
-            augment=augment if augment is not None else learner.augment(seed),
-            model=model if model is not None else learner.default_model(seed, epochs),
-            dt=made_for.dt,
-        )
-        fitted, report = train_model(
-            data,
-            wheelbase,
-            config,
-            on_epoch=on_epoch,
-            vehicle=made_for.vehicle,
-            allow_mismatch=allow_mismatch,
-            source=source,
-        )
-        warned = tuple(fitted.metadata_["contract_warnings"])
-        return Learned(recipe=recipe, model=fitted, report=report, warnings=warned, metadata=fitted.metadata_)
-    warned = data.contract.check(made_for, source=source, made="recorded", allow_mismatch=allow_mismatch)
-    check_learnable(data, wheelbase, source)
-    ident = identify(data, vehicle)
-    if recipe.learner.tyres:
-        ident = replace(ident, tyres=identify_tyres(data, vehicle, ident))
-    contract = replace(data.contract, dt=data.dt, wheelbase=wheelbase, recorded=True)
-    metadata = {
-        "data_hash": data.content_hash(),
-        "data_metadata": data.metadata,
-        CONTRACT_KEY: contract.to_json(),
-        "contract_warnings": list(warned),
-    }
-    return Learned(
-        recipe=recipe,
-        model=ident,
-        report=None,
-        warnings=(*warned, *ident.warnings, *(ident.tyres.warnings if ident.tyres else ())),
-        metadata=metadata,
-    )
 
 
 def save_learned(learned: Learned, path: str | Path) -> None:
