@@ -105,8 +105,8 @@ def test_the_f1tenth_preset_keeps_the_limits_and_the_controllers_defaults():
     ) == (4.0, 2.5, 2.5, 3.5, 0.5, 1.0)
     assert limits == F1TENTH_LIMITS
     # The 1:10 car's settings are the controllers' own defaults, but rkmpc's: its preset tunes it
-    # (on the built-in track and the oval) with the slip drift, heavier position and heading weights
-    # and the lateral guard.
+    # (on the built-in track and the oval) with the slip drift, heavier position and heading weights,
+    # the lateral guard and the retimed reference.
     assert car.controllers == replace(ControllerSettings(), rkmpc=car.controllers.rkmpc)
     assert car.controllers.lmpc == LMPCConfig()
     assert car.controllers.rkmpc == replace(
@@ -115,6 +115,7 @@ def test_the_f1tenth_preset_keeps_the_limits_and_the_controllers_defaults():
         heading_weight=3.0,
         slip_drift=True,
         lateral_guard=LateralGuardConfig(enabled=True),
+        retimed=True,
     )
     assert ResidualKoopmanMPC.default_config == RKMPCConfig()
     assert car.controllers.rkmpc_paper == PaperResidualKoopmanMPC.default_config == PAPER_RESIDUAL

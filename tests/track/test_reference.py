@@ -183,3 +183,31 @@ def test_horizon_from_threads(reference: Reference) -> None:
         got = list(pool.map(lambda s0: horizon_rows(reference, s0, 30, 0.05), starts))
     for a, b in zip(got, expected, strict=True):
         assert_same(a, b)
+
+
+@pytest.mark.parametrize("s0", [3.0, 47.0])
+def test_along_matches_horizon_at_its_arc_lengths(reference: Reference, s0: float) -> None:
+    """``along`` at the distances the time-indexed horizon covers gives the horizon's points."""
+    h = reference.horizon(s0, 40, 0.05)
+    length = reference.path.length
+    distances = np.cumsum(np.mod(np.diff(h.s), length))
+    a = reference.along(s0, distances)
+    np.testing.assert_allclose(a.s, h.s, atol=1e-9)
+    for name in ("x", "y", "theta", "v", "delta"):
+        np.testing.assert_allclose(getattr(a, name), getattr(h, name), atol=1e-9, err_msg=name)
+
+
+def test_along_places_points_at_any_distance_and_across_the_start_line(reference: Reference) -> None:
+    length = reference.path.length
+    s0 = length - 0.3
+    distances = np.array([0.0, 0.1, 0.25, 0.6, 1.5, 1.5, 4.0])
+    a = reference.along(s0 + 2.0 * length, distances)  # s0 any real: wrapped
+    expected_s = np.mod(s0 + np.concatenate([[0.0], distances]), length)
+    np.testing.assert_allclose(a.s, expected_s, atol=1e-9)
+    assert np.all(a.s >= 0.0) and np.all(a.s < length)
+    np.testing.assert_allclose(np.column_stack([a.x, a.y]), reference.path.position(a.s), atol=1e-4)
+    assert -np.pi < a.theta[0] <= np.pi
+    assert np.max(np.abs(np.diff(a.theta))) < 0.5  # continuous across the line
+    np.testing.assert_allclose(wrap_angle(a.theta - reference.path.heading(a.s)), 0.0, atol=1e-3)
+    np.testing.assert_allclose(a.v, reference.profile.speed(a.s), rtol=1e-3)
+    assert a.theta[5] == a.theta[6]  # the same distance twice: the same point

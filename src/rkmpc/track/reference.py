@@ -272,13 +272,16 @@ class Reference:
 
     def _horizon_general(self, s0w: float, t0: float, n_steps: int, dt: float) -> ReferenceHorizon:
         """:meth:`horizon` for any start, lap crossings included (plain vectorised code)."""
-        length = self._length
         lap_time = self.lap_time
         t = t0 + dt * np.arange(n_steps + 1)
         laps = np.floor(t / lap_time)
         s_lap = np.interp(t - laps * lap_time, self._t_prof, self._s_prof)
         # Make the first point exactly s0 (interpolation round trip is not exact).
         s_lap[0] = s0w
+        return self._tabulated(s_lap, laps)
+
+    def _tabulated(self, s_lap: FloatArray, laps: FloatArray) -> ReferenceHorizon:
+        """The path table at arc lengths ``s_lap`` within lap ``laps``, theta from (-pi, pi]."""
         u = s_lap / self._ds
         idx = np.minimum(u.astype(np.intp), self._n_tab - 1)
         frac = (u - idx)[:, None]
@@ -289,7 +292,7 @@ class Reference:
         th0 = theta[0]
         wrapped0 = wrap_scalar(th0)
         theta = theta + (wrapped0 - th0)
-        s_out = np.where(s_lap >= length, s_lap - length, s_lap)
+        s_out = np.where(s_lap >= self._length, s_lap - self._length, s_lap)
         return ReferenceHorizon(
             s=s_out,
             x=vals[:, 0],
@@ -298,6 +301,32 @@ class Reference:
             v=vals[:, 3],
             delta=vals[:, 4],
         )
+
+    def along(self, s0: float, distances: FloatArray) -> ReferenceHorizon:
+        """The reference at ``s0`` and at the arc lengths ``s0 + distances`` ahead of it.
+
+        Where :meth:`horizon` spaces its points by the time the speed profile takes,
+        this spaces them by distance: the points a car reaches at any other speed.
+
+        Parameters
+        ----------
+        s0 : float
+            Arc length (m) of the first point, any real; wrapped modulo the path length.
+        distances : numpy.ndarray
+            Distances (m) of the following points from ``s0``, shape (n,), non-decreasing and
+            >= 0 (checked by the caller; they may run over the start line).
+
+        Returns
+        -------
+        ReferenceHorizon
+            Arrays of shape ``(n + 1,)``; ``theta`` continuous from ``theta[0]`` in (-pi, pi],
+            ``v`` the speed profile's at each point.
+        """
+        s = np.empty(len(distances) + 1)
+        s[0] = s0 % self._length
+        np.add(s[0], distances, out=s[1:])
+        laps = np.floor(s / self._length)
+        return self._tabulated(s - laps * self._length, laps)
 
     def project(self, x: float, y: float, s_hint: float | None = None) -> Projection:
         """Project a point onto the reference path (see :meth:`Path.project`)."""

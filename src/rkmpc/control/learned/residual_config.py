@@ -134,6 +134,11 @@ class RKMPCConfig(ResidualMPCConfig):
     lateral_guard : LateralGuardConfig
         The constraint that keeps the corrected plan's predicted lateral deviations within the
         uncorrected plan's largest (:mod:`rkmpc.control.learned.lateral_guard`); off by default.
+    retimed : bool
+        Whether the residual QP predicts along the reference retimed to the learned model's
+        predicted speeds, with speed acting along the track only and the position error split
+        into the lateral deviation and the lag behind the speed profile's schedule
+        (:mod:`rkmpc.control.learned.progress`); off: the LMPC's time-indexed linearisation.
     """
 
     lateral_accel_weight: float = 0.0
@@ -141,14 +146,16 @@ class RKMPCConfig(ResidualMPCConfig):
     trust: TrustConfig = field(default_factory=TrustConfig)
     adaptation: AdaptationConfig = field(default_factory=AdaptationConfig)
     lateral_guard: LateralGuardConfig = field(default_factory=LateralGuardConfig)
+    retimed: bool = False
 
     def __post_init__(self) -> None:
         super().__post_init__()
         if not isinstance(self.lateral_guard, LateralGuardConfig):
             raise ParameterError("RKMPCConfig.lateral_guard must be a LateralGuardConfig")
         check_weights(self, "lateral_accel_weight")
-        if not isinstance(self.slip_drift, bool):
-            raise ParameterError(f"RKMPCConfig.slip_drift must be True or False, got {self.slip_drift!r}")
+        for name in ("slip_drift", "retimed"):
+            if not isinstance(getattr(self, name), bool):
+                raise ParameterError(f"RKMPCConfig.{name} must be True or False, got {getattr(self, name)!r}")
         if not isinstance(self.trust, TrustConfig) or not isinstance(self.adaptation, AdaptationConfig):
             raise ParameterError("RKMPCConfig.trust and .adaptation must be TrustConfig and AdaptationConfig")
 

@@ -36,6 +36,7 @@ from rkmpc.control.learned.lifted import (
     recipe_state,
     reference_in_local_frame,
 )
+from rkmpc.control.learned.progress import ProgressSplit, linearisation
 from rkmpc.control.learned.residual_config import PAPER_RESIDUAL, ResidualMPCConfig, RKMPCConfig
 from rkmpc.control.learned.trust import CorrectionTrust
 from rkmpc.control.linear.lmpc import LinearMPC, LMPCConfig, Prediction
@@ -261,6 +262,7 @@ class ResidualKoopmanMPC(_ResidualBase):
         if x_min is not None and x_max is not None and cx is not None:
             self.trust = CorrectionTrust(m.A_, m.B_, cx, x_min, x_max, self.config.trust)
         self._rls = OutputRLS(m.C_, m.D_, self.config.adaptation) if self.config.adaptation.enabled else None
+        self._split = ProgressSplit(self.reference, self.lmpc.problem) if self.config.retimed else None
         # The last step's lifted state, command and pose (for adaptation).
         self._last: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self._pose = np.zeros(3)
@@ -286,10 +288,10 @@ class ResidualKoopmanMPC(_ResidualBase):
             out["slip_unmeasured"] = float(self.slip_unmeasured)
         return out
 
-    def _add_slip_drift(self, e0: np.ndarray, observation: Observation, pred: Prediction) -> None:
+    def _add_slip_drift(self, e0: np.ndarray, observation: Observation, Phi: np.ndarray) -> None:
         """Add to the predicted deviations ``e0`` (3N,) how a slip angle held over the horizon moves them.
 
-        The heading column of the LMPC's ``Phi`` holds, in its position rows, the sums of
+        The heading column of the prediction's ``Phi`` holds, in its position rows, the sums of
         ``v_r T (-sin, cos)(theta_r)``: the displacement of a heading offset that never turns the
         car, which is what a car sliding at a fixed angle to its heading adds.
         """
@@ -298,7 +300,7 @@ class ResidualKoopmanMPC(_ResidualBase):
             self.slip_unmeasured += 1
             return
         for row in (0, 1):  # x and y of every step; the heading rows are not moved
-            e0[row::3] += beta * pred.Phi[row::3, 2]
+            e0[row::3] += beta * Phi[row::3, 2]
 
     def _refresh_prediction(self) -> None:
         if self._rls is None:
@@ -340,11 +342,15 @@ class ResidualKoopmanMPC(_ResidualBase):
             self.trust.judge(x)
         self._z0 = np.asarray(z0, dtype=float)
         # Kinematic deviations when the car's effective input is U_p(U_lmpc + dU).
-        e0 = pred.Phi @ pred.xi0 + pred.Gamma @ (self._Mz @ z0 + self._Mu @ plan - pred.u_ref.ravel())
+        effective = self._Mz @ z0 + self._Mu @ plan
+        Phi, Gamma, theta, u_ref = linearisation(pred, effective, self._split)
+        e0 = Phi @ pred.xi0 + Gamma @ (effective - u_ref)
         if self.config.slip_drift:
-            self._add_slip_drift(e0, observation, pred)
-        GM = pred.Gamma @ self._Mu
-        self.lateral.pose(pred.reference.theta[1 : self.horizon + 1], e0, GM)
+            self._add_slip_drift(e0, observation, Phi)
+        GM = Gamma @ self._Mu
+        self.lateral.pose(theta, e0, GM)
+        if self._split is not None:
+            e0, GM = self._split.rows(pred, effective, self._Mu, e0, GM, theta)
         GtQ = (self._q[:, None] * GM).T
         H = GtQ @ GM
         H += self._R
