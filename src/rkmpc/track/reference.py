@@ -314,7 +314,8 @@ class Reference:
             Arc length (m) of the first point, any real; wrapped modulo the path length.
         distances : numpy.ndarray
             Distances (m) of the following points from ``s0``, shape (n,), non-decreasing and
-            >= 0 (checked by the caller; they may run over the start line).
+            >= 0 (not checked here: the residual QP's are cumulative sums of non-negative steps);
+            they may run over the start line.
 
         Returns
         -------
