@@ -275,3 +275,14 @@ def test_a_completed_lap_that_slid_is_flagged_and_said(capsys):
             console.print(table)
         shown = console.export_text()
         assert "19.1 !" in shown and " ".join(note.split()) in " ".join(shown.split())
+
+
+def test_a_run_that_never_started_reads_not_driven_not_a_failed_lap():
+    from rkmpc.analysis.metrics import LapMetrics
+
+    results = {"lmpc": RESULTS["lmpc"], "rkmpc": LapMetrics.not_driven()}
+    cells = _cells(markdown_table(results).splitlines()[3])
+    assert cells[:3] == ["rkmpc", "not driven", "-"]
+    # A lap that started and failed still reads NO with its progress.
+    failed = _cells(markdown_table(RESULTS).splitlines()[4])
+    assert failed[:3] == ["rkmpc", "NO", "46%"]

@@ -34,6 +34,8 @@ _CHANGE_KEYS = ("lateral_error_mean_m", "heading_error_mean_rad", "steer_rate_me
 #: (``docs/baselines.md``: the peak is of speed x yaw rate, transients included).
 SLIDE_FACTOR = 2.0
 SLIDE_MARK = " !"
+#: The "done" cell of a run that never started (no step driven).
+NOT_DRIVEN = "not driven"
 
 
 def slid(metrics: Mapping[str, Any], lateral_limit: float | None) -> bool:
@@ -87,6 +89,8 @@ def table_rows(
     base = results[baseline] if baseline and baseline in results else None
     for name, metrics in results.items():
         row = [name] + [format_cell(metrics[key], fmt) for key, _, fmt in TABLE_COLUMNS]
+        if metrics["steps"] == 0:  # never started (a learned controller whose data were refused)
+            row[1:3] = [NOT_DRIVEN, "-"]
         if slid(metrics, lateral_limit):
             row[len(TABLE_COLUMNS)] += SLIDE_MARK
         if base is not None:
