@@ -36,6 +36,9 @@ SLIDE_FACTOR = 2.0
 SLIDE_MARK = " !"
 #: The "done" cell of a run that never started (no step driven).
 NOT_DRIVEN = "not driven"
+#: Positions of the "done" and "lap %" cells in a row of :func:`table_rows` (the name comes first).
+_KEYS = [key for key, _, _ in TABLE_COLUMNS]
+_DONE_CELL, _PROGRESS_CELL = 1 + _KEYS.index("completed"), 1 + _KEYS.index("progress")
 
 
 def slid(metrics: Mapping[str, Any], lateral_limit: float | None) -> bool:
@@ -90,7 +93,8 @@ def table_rows(
     for name, metrics in results.items():
         row = [name] + [format_cell(metrics[key], fmt) for key, _, fmt in TABLE_COLUMNS]
         if metrics["steps"] == 0:  # never started (a learned controller whose data were refused)
-            row[1:3] = [NOT_DRIVEN, "-"]
+            row[_DONE_CELL] = NOT_DRIVEN
+            row[_PROGRESS_CELL] = "-"
         if slid(metrics, lateral_limit):
             row[len(TABLE_COLUMNS)] += SLIDE_MARK
         if base is not None:
