@@ -119,3 +119,48 @@ def test_refused_laps_leave_that_controller_undriven_and_the_others_reported(mon
         "- `lmpc-id` did not drive, not learned: the data set [next_obs]"
         in (tmp_path / "table.md").read_text()
     )
+
+
+def test_a_residual_model_worse_than_no_correction_is_refused_and_that_controller_not_driven(
+    builtin_scenario, monkeypatch
+):
+    """A model that diverges over the horizon (laps ending in a spin) is never used silently."""
+    from rkmpc.learning.pipeline import TrainReport
+
+    monkeypatch.setattr(models, "collect", lambda *args, **kwargs: _held_wheel())
+    report = TrainReport(
+        raw_count=60,
+        augmented_count=240,
+        train_windows=48,
+        holdout_windows=12,
+        fit_time_s=0.1,
+        multi_step_error=[0.3, 2.0, 4.6],
+        no_correction_error=[0.28, 0.28, 0.36],
+    )
+    monkeypatch.setattr(learn_module, "train_model", lambda *args, **kwargs: (object(), report))
+    messages: list[str] = []
+    learned, record = learn_models(
+        builtin_scenario, ModelPlan(controllers=["rkmpc"], use_cache=False), say=messages.append
+    )
+    assert "rkmpc" not in learned
+    refused = record.models["rkmpc"].refused or ""
+    assert "the residual model learned from it is refused" in refused and "(0.3067, 0.36)" in refused
+    assert any(m.startswith("warning: rkmpc not learned, its model was refused: ") for m in messages)
+
+
+@pytest.mark.slow
+def test_laps_that_end_in_a_spin_give_low_grip_no_rkmpc_on_yas_marina(shared_tracks):
+    """The LMPC's two laps of ``low-grip`` on Yas Marina, through the real F1TENTH sensors, end in a
+    spin at 9 % of the lap: the residual model learned from them diverges over the horizon (a
+    held-out error in the thousands at 35 steps) and is refused; the LMPC's run stands."""
+    from rkmpc.config.loader import load_preset
+    from rkmpc.experiments.compare import CompareConfig, compare
+    from rkmpc.experiments.results import NOT_LEARNED
+
+    car = load_preset("f1tenth").with_zoo_car("low-grip").with_sensors("f1tenth-real")
+    track = str(shared_tracks / "centerlines" / "YasMarina.csv")
+    result = compare(CompareConfig(track=track, car=car, controllers=("lmpc", "rkmpc"), use_cache=False))
+    assert result.controllers["lmpc"].outcome != NOT_LEARNED
+    assert result.controllers["lmpc"].metrics["lateral_error_mean_m"] > 0
+    rk = result.controllers["rkmpc"]
+    assert rk.outcome == NOT_LEARNED and "is above no correction's" in (rk.failure or "")

@@ -56,6 +56,26 @@ class BagError(InputFileError):
         super().__init__(path, problem, ", ".join(where) if where else None)
 
 
+class NotLearnedError(RkmpcError):
+    """A model was fitted but is refused: it predicts its own held-out data worse than the model it corrects.
+
+    Parameters
+    ----------
+    source : str
+        The data it was learned from (a file, or what made the laps).
+    kind : str
+        The model kind (``residual``, ...).
+    reason : str
+        The figures that refuse it, in words.
+    """
+
+    def __init__(self, source: str, kind: str, reason: str) -> None:
+        self.source = source
+        self.kind = kind
+        self.reason = reason
+        super().__init__(f"{source}: the {kind} model learned from it is refused: {reason}")
+
+
 class OutputError(RkmpcError):
     """An output file or folder cannot be written as asked (in use, a folder for a file, ...)."""
 

@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any
 
 import rkmpc.core
-from rkmpc.core.errors import InputFileError, ParameterError
+from rkmpc.core.errors import InputFileError, NotLearnedError, ParameterError
 from rkmpc.core.progress import EpochProgress
 from rkmpc.core.versions import RKMPC_VERSION
 from rkmpc.experiments.cache import ModelCache
@@ -72,6 +72,7 @@ def _record(learned: Learned, **extra: Any) -> ModelRecord:
         fit_time_s=report.fit_time_s,
         heldout_error_step1=err[0] if err else None,
         heldout_error_last=err[-1] if err else None,
+        no_correction_error_last=report.no_correction_error[-1] if report.no_correction_error else None,
         # The state range the model was trained on; it clips states into it (no extrapolation).
         state_min=model.x_min_.tolist(),
         state_max=model.x_max_.tolist(),
@@ -252,7 +253,8 @@ def learn_models(
     models : dict
         The model of each learned controller, by controller name; none for a controller whose
         on-track data were refused (:class:`~rkmpc.core.errors.InputFileError` of the checks of
-        the data), whose record then says why (``refused``).
+        the data) or whose model was (:class:`~rkmpc.core.errors.NotLearnedError`: it predicts the
+        held-out laps worse than no correction), whose record then says why (``refused``).
     training : TrainingRecord
         The data and a record per model (with the contract warnings of a model file used on
         request with another car or period).
@@ -305,11 +307,15 @@ def learn_models(
                     cache=cache,
                     say=say,
                 )
-            except InputFileError as exc:
-                # Laps no model should be learned from (the LMPC spun in them, say): this controller
-                # has no model and does not drive; the others still do, and the record says why.
+            except (InputFileError, NotLearnedError) as exc:
+                # Laps no model should be learned from (the LMPC spun in them, say), or a model that
+                # predicts them worse than no correction: this controller has no model and does not
+                # drive; the others still do, and the record says why.
                 records[name] = ModelRecord(kind=recipe.kind, refused=str(exc))
-                tell(f"warning: {name} not learned, its data were refused: {exc}")
+                what = (
+                    "its model was refused" if isinstance(exc, NotLearnedError) else "its data were refused"
+                )
+                tell(f"warning: {name} not learned, {what}: {exc}")
     for name, recipe in to_learn:
         if recipe.data is DataSource.EXCITATION:
             tell(f"{name} model: {plan.excitation_samples} random-excitation samples (learned once, cached)")

@@ -27,7 +27,7 @@ __all__ = [
     "TrainingRecord",
 ]
 
-#: The outcome of a learned controller whose data were refused: it did not drive.
+#: The outcome of a learned controller whose data or model were refused: it did not drive.
 NOT_LEARNED = "not_learned"
 
 
@@ -41,7 +41,7 @@ class ControllerRun:
         The lap metrics.
     outcome : str
         How the run ended (:data:`rkmpc.sim.closed_loop.OUTCOMES`), or :data:`NOT_LEARNED` for a
-        learned controller that was not driven because its data were refused.
+        learned controller that was not driven because its data or its model were refused.
     failure : str or None
         The plant's message when ``outcome`` is ``"plant_failure"``, why the data were refused
         when it is :data:`NOT_LEARNED`, else None.
@@ -102,10 +102,13 @@ class ModelRecord:
 
     A model read from a file records only ``model_file``; an identified model its
     parameters; a trained Koopman model its sample counts, held-out errors, the
-    state range it clips to, and whether it came from the cache. A model used on
+    state range it clips to, and whether it came from the cache; a residual model also the
+    held-out error of no correction at the horizon's last step (``no_correction_error_last``,
+    :class:`~rkmpc.learning.pipeline.TrainReport`). A model used on
     request with another car, period or track scale than it was made with records
     the warnings (``contract_warnings``). A model that could not be learned because its data were
-    refused (:func:`rkmpc.learning.data.plausibility.check_learnable`) records why (``refused``).
+    refused (:func:`rkmpc.learning.data.plausibility.check_learnable`), or that was refused itself
+    (:class:`~rkmpc.core.errors.NotLearnedError`), records why (``refused``).
     """
 
     kind: str | None = None
@@ -117,6 +120,7 @@ class ModelRecord:
     fit_time_s: float | None = None
     heldout_error_step1: float | None = None
     heldout_error_last: float | None = None
+    no_correction_error_last: float | None = None
     state_min: list[float] | None = None
     state_max: list[float] | None = None
     collect_time_s: float | None = None

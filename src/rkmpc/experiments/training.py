@@ -291,4 +291,10 @@ def describe_learned(learned: Learned, out: str | Path) -> list[str]:
                 f"held-out prediction error ({unit}): "
                 + ", ".join(f"{err[k - 1]:.4f} at step {k}" for k in steps)
             )
+            none = report.no_correction_error
+            if len(none) == len(err):
+                lines.append(
+                    "no correction (U_p = the command), same windows: "
+                    + ", ".join(f"{none[k - 1]:.4f} at step {k}" for k in steps)
+                )
     return lines

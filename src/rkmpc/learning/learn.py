@@ -23,6 +23,7 @@ from typing import Any
 
 from threadpoolctl import threadpool_limits
 
+from rkmpc.core.errors import NotLearnedError
 from rkmpc.learning.contract import CONTRACT_KEY, Provenance
 from rkmpc.learning.data.augmentation import AugmentConfig
 from rkmpc.learning.data.dataset import TransitionDataset
@@ -113,6 +114,10 @@ def learn(
         When the data were recorded with another car, wheelbase or period, unless ``allow_mismatch``.
     InputFileError
         For data no model should be learned from (:func:`rkmpc.learning.data.plausibility.check_learnable`).
+    NotLearnedError
+        For a model of the kinematic model's input (``residual``) that predicts its held-out
+        windows worse than no correction at all
+        (:meth:`rkmpc.learning.pipeline.TrainReport.worse_than_no_correction`).
     """
     with threadpool_limits(limits=TRAINING_THREADS, user_api="blas"):
         wheelbase = vehicle.wheelbase
@@ -133,6 +138,14 @@ def learn(
                 allow_mismatch=allow_mismatch,
                 source=source,
             )
+            worse = report.worse_than_no_correction()
+            if worse is not None:
+                raise NotLearnedError(
+                    source,
+                    recipe.kind,
+                    f"{worse}: its correction would steer the car worse than none (laps that end in a "
+                    "spin teach a correction that diverges over the horizon)",
+                )
             warned = tuple(fitted.metadata_["contract_warnings"])
             return Learned(
                 recipe=recipe, model=fitted, report=report, warnings=warned, metadata=fitted.metadata_

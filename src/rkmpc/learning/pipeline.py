@@ -96,6 +96,10 @@ class TrainReport:
     multi_step_error : list of float
         Held-out mean prediction error per horizon step (units of the model's output: m for pose
         models, m/s and rad combined for ``residual``).
+    no_correction_error : list of float
+        For a model of the kinematic model's input ``U_p`` driven by the command (``residual``): the
+        same held-out error of no correction at all (``U_p`` taken equal to the command), per
+        horizon step; empty for the other kinds or without held-out windows.
     """
 
     raw_count: int
@@ -104,6 +108,25 @@ class TrainReport:
     holdout_windows: int
     fit_time_s: float
     multi_step_error: list[float]
+    no_correction_error: list[float] = field(default_factory=list)
+
+    def worse_than_no_correction(self) -> str | None:
+        """Why the model predicts its held-out windows worse than no correction, or None when it does not.
+
+        Worse means a mean error over the horizon, or an error at its last step, above no
+        correction's: a model that diverges over the MPC's horizon (trained on laps that end in a
+        spin, say) would steer the car by a correction that is wrong by more than its absence.
+        """
+        model, none = self.multi_step_error, self.no_correction_error
+        if not model or len(model) != len(none):
+            return None
+        mean_model, mean_none = float(np.mean(model)), float(np.mean(none))
+        if mean_model <= mean_none and model[-1] <= none[-1]:
+            return None
+        return (
+            f"its held-out prediction error ({mean_model:.4g} mean over {len(model)} steps, {model[-1]:.4g} "
+            f"at the last) is above no correction's ({mean_none:.4g}, {none[-1]:.4g})"
+        )
 
 
 def _window_states(windows: LocalWindows, state: FeatureMap, previous: np.ndarray) -> np.ndarray:
@@ -212,10 +235,13 @@ def train_model(
     model.fit(X, U, X_next, Y=Y, windows=(Xw[train], Uw[train]), on_epoch=on_epoch)
     fit_time = time.perf_counter() - t0
     multi: list[float] = []
+    none: list[float] = []
     if n_hold:
         hold = slice(split, None)
         err = model.multi_step_error(Xw[hold], Uw[hold], None if Yw is None else Yw[hold])
         multi = [float(e) for e in err]
+        if Yw is not None and recipe.koopman().model_input is ModelInput.COMMAND:
+            none = [float(e) for e in np.linalg.norm(Yw[hold] - Uw[hold], axis=-1).mean(axis=0)]
     report = TrainReport(
         raw_count=len(data),
         augmented_count=windows.augmented_count,
@@ -223,6 +249,7 @@ def train_model(
         holdout_windows=n_hold,
         fit_time_s=fit_time,
         multi_step_error=multi,
+        no_correction_error=none,
     )
     contract = Provenance(
         vehicle=made_with.vehicle if made_with.vehicle is not None else vehicle,

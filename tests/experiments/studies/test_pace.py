@@ -278,6 +278,23 @@ def test_learn_pace_pools_clean_laps_and_stops_at_an_unclean_one(synthetic):
     assert isinstance(figure, Figure)
 
 
+def test_learn_pace_stops_where_its_model_is_refused(synthetic, monkeypatch):
+    from rkmpc.core.errors import NotLearnedError
+
+    def refuse_above_5(recipe, scenario, data, data_key, *, seed, epochs=None, cache=None, say=None):
+        if scenario.limits.lateral_accel > 5.0:
+            raise NotLearnedError("the pool", recipe.kind, "worse than no correction")
+        return "model", _Record(recipe.kind)
+
+    monkeypatch.setattr(learn_mod, "make_model", refuse_above_5)
+    result = learn_pace(LearnPaceConfig(paces=LADDER, use_cache=False))
+    assert [(it.controller, it.pace[0], it.clean) for it in result.iterations] == [
+        ("lmpc", 4.0, True),
+        ("rkmpc", 5.0, True),
+    ]
+    assert result.stopped == "no model at 6/5: worse than no correction"
+
+
 def test_the_cli_climbs_from_the_car_files_pace_and_records_the_file(synthetic, tmp_path):
     from rkmpc.cli import main
 

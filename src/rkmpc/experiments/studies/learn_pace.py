@@ -18,7 +18,7 @@ from rkmpc.analysis.metrics import LapMetrics, lap_metrics
 from rkmpc.analysis.tables import fmt, markdown
 from rkmpc.config.car import CarConfig
 from rkmpc.config.loader import load_preset
-from rkmpc.core.errors import ParameterError
+from rkmpc.core.errors import NotLearnedError, ParameterError
 from rkmpc.core.validation import is_integer
 from rkmpc.experiments.models import make_model
 from rkmpc.experiments.parallel import Job, JobOutcome
@@ -310,9 +310,19 @@ def learn_pace_job(config: LearnPaceConfig) -> LearnPaceRun:
         scenario = study.scenario(config.track, pace)
         joined = TransitionDataset.concatenate([d for _, _, d in pool]) if len(pool) > 1 else pool[0][2]
         key = {"data_hash": joined.content_hash()}
-        model, model_record = make_model(
-            recipe, scenario, _given(joined), key, seed=seed, epochs=config.car.training.epochs, cache=cache
-        )
+        try:
+            model, model_record = make_model(
+                recipe,
+                scenario,
+                _given(joined),
+                key,
+                seed=seed,
+                epochs=config.car.training.epochs,
+                cache=cache,
+            )
+        except NotLearnedError as exc:
+            stopped = f"no model at {pace_label(pace)}: {exc.reason}"
+            break
         run = record(scenario, RunSpec(config.controller, laps=laps, seed=seed), model=model)
         trained_on = [{"recorder": who, "pace": list(at), "samples": len(d)} for who, at, d in pool]
         iterations.append(
