@@ -116,7 +116,9 @@ def test_every_kind_trains_from_the_bag(recorded, tmp_path, kind):
         assert model.fitted_on == "yaw_rate" and model.status in ("identified", "nominal")
         assert json.loads(out.read_text())["metadata"]["data_metadata"]["source"] == "bag"
         return
-    assert lines[0].startswith(f"{kind} model: ") and "held-out prediction error" in lines[-1]
+    assert lines[0].startswith(f"{kind} model: ") and lines[1].startswith("held-out prediction error")
+    # A residual model is shown beside no correction on the same windows (and was not refused).
+    assert (kind == "residual") == any(line.startswith("no correction (U_p = the command)") for line in lines)
     metadata = model.metadata_["data_metadata"]
     assert metadata["source"] == "bag" and metadata["topics"]["odom"] == ODOM
     # Learned from the estimates: the steering they were propagated with is the one to drive with.
