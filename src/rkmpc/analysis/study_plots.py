@@ -125,10 +125,12 @@ def plot_cars_study(
     ax_lat, ax_done = figure.subplots(1, 2, width_ratios=(3, 2))
     x = np.arange(len(cars))
     width = 0.8 / max(len(controllers), 1)
+    drawn = False
     for i, name in enumerate(controllers):
         offset = x + (i - (len(controllers) - 1) / 2) * width
         stats_ = [lateral[car][name] for car in cars]
         mean = np.array([np.nan if s.mean is None else s.mean for s in stats_])
+        drawn = drawn or bool(np.any(mean > 0))
         low = np.array([np.nan if s.min is None else s.min for s in stats_])
         high = np.array([np.nan if s.max is None else s.max for s in stats_])
         color = controller_style(name).get("color")
@@ -139,7 +141,11 @@ def plot_cars_study(
         ax_done.bar(offset, [completion[car][name] for car in cars], width, label=name, color=color)
     for ax in (ax_lat, ax_done):
         ax.set_xticks(x, list(cars), rotation=30, ha="right")
-    ax_lat.set_yscale("log")
+    if drawn:
+        ax_lat.set_yscale("log")
+    else:  # no completed lap at all: nothing to put on a logarithmic axis
+        ax_lat.text(0.5, 0.5, "no completed lap", ha="center", va="center", transform=ax_lat.transAxes)
+        ax_lat.set_yticks([])
     ax_lat.set_ylabel("mean lateral error (m), completed laps")
     ax_done.set_ylabel("laps completed (-)")
     ax_done.set_ylim(0, 1.05)

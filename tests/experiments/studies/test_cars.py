@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import io
 import json
 
 import pytest
@@ -59,9 +60,12 @@ def test_targets_are_judged_against_their_limits() -> None:
     assert weak.missed() == ["lateral_pct", "heading_pct"]
     off = CarTargets("gym", "oval", 0, None, None, None, None, False)
     assert len(off.missed()) == 4
-    table = targets_table([good, worse_max, off])
+    refused = CarTargets("gym", "oval", 0, None, None, None, None, False, not_learned=True)
+    assert len(refused.missed()) == 4
+    table = targets_table([good, worse_max, off, refused])
     assert "| gym | oval | 0 | -45% | -35% | -1% | -5% | - |" in table
-    assert "not completed" in table and "met on 1 of 3 runs" in table
+    assert "| gym | oval | 0 | - | - | - | - | not completed |" in table
+    assert "| gym | oval | 0 | - | - | - | - | not learned |" in table and "met on 1 of 4 runs" in table
 
 
 def test_plot_has_a_bar_per_controller_and_car() -> None:
@@ -71,6 +75,17 @@ def test_plot_has_a_bar_per_controller_and_car() -> None:
     left, right = figure.axes
     assert len(left.patches) == 4 and len(right.patches) == 4
     assert [p.get_height() for p in right.patches] == [1.0, 1.0, 0.5, 0.5]
+
+
+def test_plot_of_a_study_where_no_lap_was_completed_says_so() -> None:
+    # low-grip on Yas Marina through the real sensors: the LMPC leaves the track, rkmpc is not
+    # learned; the plot used to fail on its logarithmic axis with nothing to put on it.
+    lateral = {"low-grip": {"lmpc": stats([]), "rkmpc": stats([])}}
+    done = {"low-grip": {"lmpc": 0.0, "rkmpc": 0.0}}
+    figure = plot_cars_study(["low-grip"], ["lmpc", "rkmpc"], lateral, done)
+    left, _ = figure.axes
+    assert left.get_yscale() == "linear" and [t.get_text() for t in left.texts] == ["no completed lap"]
+    figure.savefig(io.BytesIO(), format="png")
 
 
 @pytest.mark.slow

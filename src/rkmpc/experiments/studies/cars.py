@@ -23,6 +23,7 @@ from rkmpc.core.errors import ParameterError
 from rkmpc.experiments.compare import CompareConfig, compare
 from rkmpc.experiments.journal import canonical_json
 from rkmpc.experiments.parallel import Job, JobOutcome
+from rkmpc.experiments.results import NOT_LEARNED
 from rkmpc.experiments.studies.common import json_object, str_tuple
 from rkmpc.experiments.studies.tables import summary_table
 from rkmpc.experiments.studies.tracks import (
@@ -117,7 +118,8 @@ class CarTargets:
 
     Targets: lateral error <= -40 %, heading error <= -30 %, maximum lateral
     error no larger than the LMPC's, commanded-steering rate no larger than
-    the LMPC's; all on completed laps of both.
+    the LMPC's; all on completed laps of both. ``not_learned``: RKMPC did not drive, its data or
+    its model were refused (:data:`~rkmpc.experiments.results.NOT_LEARNED`).
     """
 
     car: str
@@ -128,6 +130,7 @@ class CarTargets:
     lateral_max_pct: float | None
     command_rate_pct: float | None
     both_completed: bool
+    not_learned: bool = False
 
     def missed(self) -> list[str]:
         """Names of the targets not met (all of them when a lap did not complete)."""
@@ -173,6 +176,7 @@ class CarsStudyResult:
                     lateral_max_pct=pct("lateral_error_max_m"),
                     command_rate_pct=pct("command_rate_mean_rad_s"),
                     both_completed=both,
+                    not_learned=result.controllers[learned].outcome == NOT_LEARNED,
                 )
             )
         return out
@@ -295,7 +299,12 @@ def targets_table(targets: Sequence[CarTargets]) -> str:
             for v in (t.lateral_pct, t.heading_pct, t.lateral_max_pct, t.command_rate_pct)
         ]
         missed = t.missed()
-        cells.append("-" if not missed else ("not completed" if not t.both_completed else ", ".join(missed)))
+        if not missed:
+            cells.append("-")
+        elif t.not_learned:
+            cells.append("not learned")
+        else:
+            cells.append("not completed" if not t.both_completed else ", ".join(missed))
         rows.append(cells)
     met = sum(1 for t in targets if not t.missed())
     return markdown(head, rows) + f"\nAll four targets met on {met} of {len(targets)} runs.\n"
