@@ -43,8 +43,8 @@ class ControllerRun:
         How the run ended (:data:`rkmpc.sim.closed_loop.OUTCOMES`), or :data:`NOT_LEARNED` for a
         learned controller that was not driven because its data or its model were refused.
     failure : str or None
-        The plant's message when ``outcome`` is ``"plant_failure"``, why the data were refused
-        when it is :data:`NOT_LEARNED`, else None.
+        The plant's message when ``outcome`` is ``"plant_failure"``, why the data or the model were
+        refused when it is :data:`NOT_LEARNED`, else None.
     """
 
     metrics: LapMetrics
