@@ -7,18 +7,21 @@ Nothing trains here: the commands' settings are built from parsed arguments, and
 
 from __future__ import annotations
 
+import io
 import json
 from pathlib import Path
 from typing import Any
 
 import pytest
+from rich.console import Console
 
 import rkmpc.experiments.studies.data as data_mod
 from rkmpc.analysis.metrics import LapMetrics
 from rkmpc.cli import build_parser, main
 from rkmpc.cli.learn_pace import learn_pace_config
-from rkmpc.cli.study import data_study_config, pace_study_config
+from rkmpc.cli.study import StudyProgress, data_study_config, pace_study_config
 from rkmpc.config.loader import load_car_config, load_preset
+from rkmpc.experiments.parallel import JobOutcome
 from rkmpc.experiments.studies.data_job import DataRun
 from rkmpc.experiments.studies.pace_rules import car_ladder, pace_ladder
 from rkmpc.sim.scenario import load_scenario
@@ -198,3 +201,16 @@ def test_study_data_drives_the_files_car_and_records_it(tmp_path, monkeypatch):
     recorded = json.loads((out / "study_data.json").read_text())["config"]["car"]
     assert recorded["file"] == str(RACE.resolve()) and len(recorded["sha256"]) == 64
     assert recorded["limits"]["lateral_accel"] == 6.0 and recorded["training"]["epochs"] == 2
+
+
+def test_the_progress_counts_a_job_s_warnings_and_sums_them_up_at_the_end(tmp_path):
+    console = Console(file=io.StringIO(), width=200)
+    progress = StudyProgress(console)
+    warned = ("IdentificationWarning: servo: kept nominal", "IdentificationWarning: tyres: kept nominal")
+    progress(JobOutcome(name="Monza seed 0", index=0, ok=True, seconds=12.0, warnings=warned), 1, 2)
+    progress(JobOutcome(name="IMS seed 0", index=1, ok=True, seconds=3.0), 2, 2)
+    lines = console.file.getvalue().splitlines()
+    assert lines == ["[1/2] Monza seed 0: 12 s, 2 warnings", "[2/2] IMS seed 0: 3 s"]
+    summary = progress.summary(tmp_path / "study_tracks.json")
+    assert summary is not None and summary.startswith("1 jobs warned (IdentificationWarning x2)")
+    assert StudyProgress(console).summary(tmp_path / "x.json") is None

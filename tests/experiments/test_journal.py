@@ -6,6 +6,7 @@ import hashlib
 import json
 import os
 import pickle
+import warnings
 from pathlib import Path
 
 import pytest
@@ -131,6 +132,18 @@ def test_values_go_through_the_study_s_encode_and_decode(tmp_path):
     assert json.loads(entry.read_text())["outcome"]["value"] == {"pair": [3, 1]}
     (out,) = run_jobs([Job("pair", _fail, (0,))], journal=journal)  # not run: taken from the journal
     assert out.resumed and out.value == (3, 1)
+
+
+def _square_warning(x: int) -> int:
+    warnings.warn(f"kept nominal for {x}", UserWarning, stacklevel=1)
+    return x * x
+
+
+def test_a_job_s_warnings_are_kept_with_its_outcome(tmp_path):
+    run_jobs([Job("sq", _square_warning, (3,))], journal=_journal(tmp_path / "j"))
+    (out,) = run_jobs([Job("sq", _fail, (3,))], journal=_journal(tmp_path / "j"))
+    assert out.resumed and out.value == 9
+    assert out.warnings == ("UserWarning: kept nominal for 3",)
 
 
 class _RunsCode:

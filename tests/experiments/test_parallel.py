@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 import operator
 import os
+import warnings
 
 import pytest
 
@@ -127,3 +128,23 @@ def test_a_backend_whose_package_is_missing_is_one_clear_line_before_any_work(mo
         run_jobs(JOBS, backend="ray")
     assert issubclass(MissingPackageError, ImportError)  # what callers catching ImportError still see
     backends.check_backend("loky")  # nothing to install
+
+
+def _warn_twice(x: int) -> int:
+    warnings.warn(f"odd {x}", UserWarning, stacklevel=1)
+    warnings.warn(f"odd {x}", UserWarning, stacklevel=1)  # the same message: kept once
+    warnings.warn("late", RuntimeWarning, stacklevel=1)
+    if x < 0:
+        raise ValueError("negative")
+    return x
+
+
+@pytest.mark.parametrize("n_jobs", [1, 2])
+def test_a_job_s_warnings_are_recorded_in_its_outcome_not_printed(n_jobs, capfd):
+    jobs = [Job("quiet", operator.pow, (2, 3)), Job("warns", _warn_twice, (3,))]
+    jobs.append(Job("fails", _warn_twice, (-1,)))
+    out = run_jobs(jobs, n_jobs=n_jobs, backend="loky", on_error="record")
+    assert out[0].warnings == ()
+    assert out[1].warnings == ("UserWarning: odd 3", "RuntimeWarning: late")
+    assert not out[2].ok and out[2].warnings == ("UserWarning: odd -1", "RuntimeWarning: late")
+    assert "odd" not in capfd.readouterr().err

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -17,6 +18,8 @@ CALLS: list[str] = []
 
 def _cube(x: int) -> tuple[int, int]:
     CALLS.append(f"cube {x}")
+    if x == 2:
+        warnings.warn("two is even", UserWarning, stacklevel=1)
     if x < 0:
         raise ValueError(f"no {x}")
     return (x, x**3)
@@ -83,6 +86,9 @@ def test_the_shared_work_then_the_jobs_then_the_typed_result():
     assert result.run.parallel == Parallel() and result.run.wall_s >= 0.0
     assert {"python", "numpy", "rkmpc"} <= set(result.run.versions)
     assert result.run.to_json()["parallel"] == {"n_jobs": 1, "backend": "loky", "address": None}
+    # What a job warned is kept with the run, by job, not printed by it.
+    assert result.run.warnings == {"cube 2": ("UserWarning: two is even",)}
+    assert result.run.to_json()["warnings"] == {"cube 2": ["UserWarning: two is even"]}
 
 
 def test_a_journal_resumes_a_study_and_refuses_other_settings(tmp_path):

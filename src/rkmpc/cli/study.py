@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+from collections import Counter
 from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
@@ -30,12 +31,12 @@ if TYPE_CHECKING:
 
 __all__ = [
     "STUDIES",
+    "StudyProgress",
     "add_study_parser",
     "cmd_study",
     "data_study_config",
     "pace_study_config",
     "run_study_command",
-    "study_progress",
     "tracks_config",
 ]
 
@@ -144,16 +145,30 @@ def add_study_parser(sub: Any) -> None:
     pace.add_argument("--journal", type=Path, default=None, help=JOURNAL_HELP)
 
 
-def study_progress(console: Any) -> Any:
-    """A progress callback that prints one line per finished job."""
+class StudyProgress:
+    """Prints one line per finished job (with how many warnings it raised), and a summary of the
+    warnings at the end; the messages themselves are in the study's JSON (``warnings``)."""
 
-    def progress(outcome: Any, done: int, total: int) -> None:
+    def __init__(self, console: Any) -> None:
+        self.console = console
+        self.warned: dict[str, tuple[str, ...]] = {}
+
+    def __call__(self, outcome: Any, done: int, total: int) -> None:
         state = f"{outcome.seconds:.0f} s" if outcome.ok else f"FAILED: {outcome.error}"
         if outcome.resumed:
             state += " (earlier run, from the journal)"
-        console.print(f"[{done}/{total}] {outcome.name}: {state}")
+        if outcome.warnings:
+            self.warned[outcome.name] = outcome.warnings
+            state += f", {len(outcome.warnings)} warning{'s' if len(outcome.warnings) > 1 else ''}"
+        self.console.print(f"[{done}/{total}] {outcome.name}: {state}")
 
-    return progress
+    def summary(self, json_file: Path) -> str | None:
+        """One line counting the jobs' warnings by type, or None when no job warned."""
+        if not self.warned:
+            return None
+        kinds = Counter(m.split(":", 1)[0] for messages in self.warned.values() for m in messages)
+        counted = ", ".join(f"{kind} x{n}" for kind, n in kinds.most_common())
+        return f"{len(self.warned)} jobs warned ({counted}); every message is under 'warnings' in {json_file}"
 
 
 def _cache_dir(args: argparse.Namespace) -> str | None:
@@ -273,14 +288,16 @@ def run_study_command(args: argparse.Namespace, study: Study[Any], stem: str) ->
         limit_threads()  # this process trains too (the shared models, or jobs when --jobs 1)
         console = Console(stderr=True)
         journal = getattr(args, "journal", None)
-        result = run_study(
-            study, parallel=parallel, journal=journal, progress=study_progress(console), say=console.print
-        )
+        progress = StudyProgress(console)
+        result = run_study(study, parallel=parallel, journal=journal, progress=progress, say=console.print)
         text = result.to_markdown()
         with output_folder(args.out, force=args.force, markers=markers) as out:
             write_json_atomic(out / f"{stem}.json", result.to_json())
             write_text_atomic(out / f"{stem}.md", text)
     print(text)
+    warned = progress.summary(args.out / f"{stem}.json")
+    if warned is not None:
+        console.print(warned)
     # The figure last, into the finished folder: a figure that fails must not lose hours of runs.
     figure = result.figure()
     if figure is not None:

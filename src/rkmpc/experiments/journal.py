@@ -200,6 +200,7 @@ class JobJournal:
                 error=data["error"],
                 traceback=data["traceback"],
                 seconds=float(data["seconds"]),
+                warnings=tuple(str(m) for m in data["warnings"]) if "warnings" in data else (),
             )
         except Exception as exc:
             raise JournalError(f"journal entry {path} (job {key!r}): unreadable ({exc})") from exc
@@ -225,6 +226,7 @@ class JobJournal:
             "error": outcome.error,
             "traceback": outcome.traceback,
             "seconds": outcome.seconds,
+            "warnings": list(outcome.warnings),
         }
         try:
             write_json_atomic(self._entry(key), {"key": key, "outcome": entry})

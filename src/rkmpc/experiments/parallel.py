@@ -48,6 +48,7 @@ import os
 import sys
 import time
 import traceback
+import warnings
 from collections import Counter
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field, replace
@@ -137,6 +138,8 @@ class JobOutcome:
         Wall time of the job in its worker (s), in the run that ran it.
     resumed : bool
         Taken from a journal (an earlier run) instead of run now.
+    warnings : tuple of str
+        ``"WarningType: message"`` of every distinct warning the job raised, in order.
     """
 
     name: str
@@ -147,6 +150,7 @@ class JobOutcome:
     traceback: str | None = None
     seconds: float = 0.0
     resumed: bool = False
+    warnings: tuple[str, ...] = ()
 
 
 #: Progress callback: ``(outcome, jobs_done, jobs_total)``, called in the calling process.
@@ -183,18 +187,32 @@ def _run_one(index: int, job: Job, single_thread: bool, parent: int | None = Non
     if single_thread:
         limit_threads()
     t0 = time.perf_counter()
-    try:
-        value = job.func(*job.args, **dict(job.kwargs))
-    except Exception as exc:
-        return JobOutcome(
-            name=job.name,
-            index=index,
-            ok=False,
-            error=f"{type(exc).__name__}: {exc}",
-            traceback=traceback.format_exc(),
-            seconds=time.perf_counter() - t0,
-        )
-    return JobOutcome(name=job.name, index=index, ok=True, value=value, seconds=time.perf_counter() - t0)
+    with warnings.catch_warnings(record=True) as caught:
+        try:
+            value = job.func(*job.args, **dict(job.kwargs))
+        except Exception as exc:
+            return JobOutcome(
+                name=job.name,
+                index=index,
+                ok=False,
+                error=f"{type(exc).__name__}: {exc}",
+                traceback=traceback.format_exc(),
+                seconds=time.perf_counter() - t0,
+                warnings=_messages(caught),
+            )
+    return JobOutcome(
+        name=job.name,
+        index=index,
+        ok=True,
+        value=value,
+        seconds=time.perf_counter() - t0,
+        warnings=_messages(caught),
+    )
+
+
+def _messages(caught: Iterable[warnings.WarningMessage]) -> tuple[str, ...]:
+    """Each distinct warning of ``caught`` once, as ``"WarningType: message"``, in order."""
+    return tuple(dict.fromkeys(f"{w.category.__name__}: {w.message}" for w in caught))
 
 
 def _check(jobs: Sequence[Job], n_jobs: int, backend: str, on_error: str) -> None:

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, ClassVar, Protocol, TypeVar
 
@@ -66,14 +66,22 @@ class Parallel:
 
 @dataclass(frozen=True, kw_only=True)
 class StudyRun:
-    """How a study ran: where, with which versions, how long (wall time, for reports only)."""
+    """How a study ran: where, with which versions, how long (wall time, for reports only), and
+    what its jobs warned (job name -> ``"WarningType: message"`` of each distinct warning; only
+    the jobs that warned)."""
 
     parallel: Parallel
     versions: Mapping[str, str]
     wall_s: float
+    warnings: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
 
     def to_json(self) -> dict[str, Any]:
-        return {"parallel": self.parallel.to_json(), "versions": dict(self.versions), "wall_s": self.wall_s}
+        return {
+            "parallel": self.parallel.to_json(),
+            "versions": dict(self.versions),
+            "wall_s": self.wall_s,
+            "warnings": {name: list(messages) for name, messages in self.warnings.items()},
+        }
 
 
 class StudyResult(Protocol):
@@ -168,7 +176,12 @@ def run_study(
         progress=progress,
         journal=kept,
     )
-    run = StudyRun(parallel=where, versions=study_versions(), wall_s=time.perf_counter() - t0)
+    run = StudyRun(
+        parallel=where,
+        versions=study_versions(),
+        wall_s=time.perf_counter() - t0,
+        warnings={o.name: o.warnings for o in outcomes if o.warnings},
+    )
     if kept is not None and kept.unkept:
         tell(
             f"journal {kept.folder}: {kept.unkept} of {len(jobs)} finished jobs not kept ({kept.failure}); "
