@@ -69,6 +69,16 @@ def demo_section(demo: Path, fig_dir: Path, doc: Path) -> list[str]:
     data = training.get("data")
     if data:
         lines += ["", f"On-track data: {data['laps']} LMPC laps, {data['raw_samples']} transitions."]
+    for sub in sorted(demo.glob("sensors-*/results.json")):
+        other = _load(sub)
+        lines += [
+            "",
+            f"The same comparison through the `{sub.parent.name.removeprefix('sensors-')}` sensors "
+            f"(`{sub.parent.relative_to(demo.parent)}`; every controller behind the state estimator, "
+            "the models learned from its smoothed states of the LMPC's laps):",
+            "",
+            markdown_table(other["controllers"]).rstrip(),
+        ]
     lines += [
         "",
         f"![paths and errors]({_figure(demo / 'plot.png', fig_dir, 'demo_plot.png', doc)})",

@@ -8,6 +8,7 @@ import math
 import numpy as np
 import pytest
 
+from rkmpc.config.loader import load_preset
 from rkmpc.core.errors import ParameterError
 from rkmpc.core.observation import Command, Observation
 from rkmpc.core.registry import UnknownNameError
@@ -31,6 +32,7 @@ from rkmpc.vehicle.params import f1tenth, fullsize
 from rkmpc.vehicle.plants.base import Plant
 from rkmpc.vehicle.plants.dynamic import DynamicPlant
 from rkmpc.vehicle.plants.fullsize import FullSizePlant
+from rkmpc.vehicle.sensors import SensedPlant
 from rkmpc.vehicle.wrappers import CommandDelay, ObservationNoise
 
 
@@ -287,6 +289,21 @@ def test_build_plant_and_record(scenario: Scenario) -> None:
         "name": "friction",
         "parameters": {"factor": 0.6, "lap_fraction": 0.2, "start_fraction": None},
     }
+
+
+@pytest.mark.parametrize("name", ["friction", "heavy"])
+def test_a_fault_of_the_car_is_measured_by_the_car_s_sensors(name: str) -> None:
+    # Through a real car's sensors the fault changes the car inside them (it failed on the sensed
+    # plant before); faults of the signals stay outside them, as with ideal sensors.
+    real = Scenario.from_car(load_preset("f1tenth").with_sensors("f1tenth-real"), "builtin")
+    plant = build_plant(real, RunSpec("lmpc", fault=name, seed=2))
+    assert isinstance(plant, SensedPlant) and isinstance(plant.plant, DynamicPlant)
+    faulty = build_plant(load_scenario("builtin"), RunSpec("lmpc", fault=name, seed=2))
+    assert type(faulty) is DynamicPlant and plant.plant.params == faulty.params
+    inside, nominal = plant.plant, real.make_car_plant(2)
+    assert (inside.friction is not None) if name == "friction" else (inside.params != nominal.params)
+    delayed = build_plant(real, RunSpec("lmpc", fault="delay", noise=DEFAULT_NOISE))
+    assert isinstance(delayed.plant, CommandDelay) and isinstance(delayed.plant.plant, SensedPlant)
 
 
 @pytest.mark.parametrize("name", ["heavy", "delay"])

@@ -63,10 +63,19 @@ class RunSpec:
 
 
 def build_plant(scenario: Scenario, spec: RunSpec) -> Plant:
-    """The scenario's plant with the spec's fault applied, wrapped with measurement noise when asked for."""
-    plant = scenario.make_plant(spec.seed)
-    if spec.fault is not None:
-        plant = get_fault(spec.fault).apply(plant, scenario, spec.seed)
+    """The scenario's plant with the spec's fault applied, wrapped with measurement noise when asked for.
+
+    A fault that changes the car (friction, mass) applies to the car before its sensors, which then
+    measure the faulty car; one of the signals (noise, delay) to what the sensors give and the
+    controller sends.
+    """
+    fault = None if spec.fault is None else get_fault(spec.fault)
+    car = scenario.make_car_plant(spec.seed)
+    if fault is not None and fault.changes_car:
+        car = fault.apply(car, scenario, spec.seed)
+    plant = scenario.car.sensors.wrap(car, spec.seed)
+    if fault is not None and not fault.changes_car:
+        plant = fault.apply(plant, scenario, spec.seed)
     if spec.noise is not None:
         plant = ObservationNoise(plant, spec.noise, seed=spec.seed)
     return plant

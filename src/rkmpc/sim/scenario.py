@@ -129,9 +129,15 @@ class Scenario:
 
         ``seed``: the sensors' noise (and a zoo car's odometry noise, if any).
         """
+        return self.car.sensors.wrap(self.make_car_plant(seed), seed)
+
+    def make_car_plant(self, seed: int = 0) -> Plant:
+        """A fresh plant of the car itself, before its sensors (:meth:`make_plant` wraps it).
+
+        A fault that changes the car (:attr:`rkmpc.sim.faults.base.Fault.changes_car`) applies here.
+        """
         zoo = self.zoo_car
-        plant = zoo.make_plant(seed) if zoo is not None else make_plant(self.car.plant.model)
-        return self.car.sensors.wrap(plant, seed)
+        return zoo.make_plant(seed) if zoo is not None else make_plant(self.car.plant.model)
 
     def provenance(self) -> Provenance:
         """The conditions of this scenario a data set or a model must have been made with.

@@ -22,9 +22,15 @@ class Fault(ABC):
     ----------
     name : str
         The fault's name in :data:`FAULTS`.
+    changes_car : bool
+        True for a change of the car itself (its grip, its mass): applied to the car's plant,
+        which its sensors then measure. False for a change of the signals between car and
+        controller (measurement noise, a command delay): applied to what the controller sees and
+        commands, after the sensors.
     """
 
     name: ClassVar[str]
+    changes_car: ClassVar[bool]
 
     @abstractmethod
     def apply(self, plant: Plant, scenario: Scenario, seed: int) -> Plant:
@@ -33,7 +39,8 @@ class Fault(ABC):
         Parameters
         ----------
         plant : Plant
-            The nominal plant of ``scenario``.
+            The nominal plant of ``scenario``: the car itself (:meth:`Scenario.make_car_plant`)
+            for a fault that :attr:`changes_car`, else the car seen through its sensors.
         scenario : Scenario
             The scenario (track, control period) the plant drives in.
         seed : int

@@ -82,6 +82,7 @@ class FrictionFault(Fault):
     """
 
     name: ClassVar[str] = "friction"
+    changes_car: ClassVar[bool] = True
     factor: float = 0.6
     lap_fraction: float = 0.2
     start_fraction: float | None = None
@@ -156,6 +157,7 @@ class HeavyFault(Fault):
     """
 
     name: ClassVar[str] = "heavy"
+    changes_car: ClassVar[bool] = True
     mass_factor: float = 1.3
     tyre_load_sensitivity: float = 0.3
     fixed_drive_force: bool = True

@@ -32,6 +32,7 @@ class NoiseFault(Fault):
     """
 
     name: ClassVar[str] = "noise"
+    changes_car: ClassVar[bool] = False
     std: NoiseStd = DEFAULT_NOISE
 
     def __post_init__(self) -> None:
@@ -59,6 +60,7 @@ class DelayFault(Fault):
     """
 
     name: ClassVar[str] = "delay"
+    changes_car: ClassVar[bool] = False
     delay: float = 0.05
 
     def __post_init__(self) -> None:
