@@ -61,3 +61,18 @@ def test_compare_config_takes_its_seed_and_plan_from_the_car():
     assert (plan.seed, plan.laps, plan.excitation_samples, plan.epochs) == (3, 1, 2000, 2)
     assert plan.controllers == ("lmpc", "kmpc")
     assert config.to_json()["car"] == car.to_json()
+
+
+def test_a_fault_that_cannot_apply_to_the_car_is_refused_before_anything_is_learned(monkeypatch):
+    import rkmpc.experiments.compare as compare_mod
+
+    def never(*_args, **_kwargs):
+        raise AssertionError("learned before the fault was checked")
+
+    monkeypatch.setattr(compare_mod, "learn_models", never)
+    zoo = CompareConfig(track="builtin", car=load_preset("f1tenth").with_zoo_car("gym"), fault="friction")
+    with pytest.raises(ParameterError, match="fault 'friction' cannot apply to plant ComposedPlant"):
+        compare_mod.compare(zoo)
+    sensed = load_preset("f1tenth").with_sensors("f1tenth-real")
+    real = CompareConfig(track="builtin", car=sensed, fault="heavy")
+    real.check_fault(real.scenario())  # a fault of the car applies inside the real sensors

@@ -66,7 +66,8 @@ def cmd_compare(args: argparse.Namespace) -> int:
     markers = ("metrics.json",) if single else ("results.json",)
     configs = [_config(args, car.with_sensors(profile), names) for profile in profiles]
     for config in configs:
-        config.scenario()  # a bad track, scale, car or profile is refused before any folder is made
+        # A bad track, scale, car, profile or fault is refused before any folder is made.
+        config.check_fault(config.scenario())
     with output_folder(args.out, force=args.force, markers=markers) as out:
         results = []
         for profile, config in zip(profiles, configs, strict=True):

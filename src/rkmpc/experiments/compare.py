@@ -30,7 +30,7 @@ from rkmpc.experiments.runs import run_controller
 from rkmpc.sim.closed_loop import SimResult
 from rkmpc.sim.faults import DEFAULT_NOISE, get_fault
 from rkmpc.sim.log import StepLog
-from rkmpc.sim.run import RunSpec, run_record
+from rkmpc.sim.run import RunSpec, build_plant, run_record
 from rkmpc.sim.scenario import Scenario
 
 __all__ = [
@@ -138,6 +138,17 @@ class CompareConfig:
         """The track, car and reference of the comparison."""
         return Scenario.from_car(self.car, self.track, scale=self.scale, raceline=self.raceline)
 
+    def check_fault(self, scenario: Scenario) -> None:
+        """Refuse a fault that cannot apply to this car before anything is learned or driven.
+
+        Raises
+        ------
+        ParameterError
+            Naming the fault and the plant (a fault of the car on a zoo car, say).
+        """
+        if self.fault is not None:
+            build_plant(scenario, RunSpec(self.controllers[0], seed=self.seed, fault=self.fault))
+
     def to_json(self) -> dict[str, Any]:
         """Every setting, the car written out whole (:meth:`CarConfig.to_json`)."""
         out = {f.name: getattr(self, f.name) for f in fields(self) if f.name != "car"}
@@ -188,6 +199,7 @@ def compare(
     TrackResult
     """
     scenario = config.scenario()
+    config.check_fault(scenario)
     models, training = learn_models(scenario, config.plan(), say=say)
     seed = config.seed
     noise = DEFAULT_NOISE if config.noise else None
