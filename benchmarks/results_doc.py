@@ -74,7 +74,7 @@ def demo_section(demo: Path, fig_dir: Path, doc: Path) -> list[str]:
         lines += [
             "",
             f"The same comparison through the `{sub.parent.name.removeprefix('sensors-')}` sensors "
-            f"(`{sub.parent.relative_to(demo.parent)}`; every controller behind the state estimator, "
+            f"(`{sub.parent.name}/` beside the demo's results; every controller behind the state estimator, "
             "the models learned from its smoothed states of the LMPC's laps):",
             "",
             markdown_table(other["controllers"]).rstrip(),
@@ -103,6 +103,15 @@ def faults_section(faults: Path, fig_dir: Path, doc: Path) -> list[str]:
             fault_table(res["controllers"], res["faulted"], res["fault_effect"], name).rstrip(),
             "",
         ]
+        for other_file in sorted(sub.glob("sensors-*/results.json")):
+            other = _load(other_file)
+            profile = other_file.parent.name.removeprefix("sensors-")
+            lines += [
+                f"Through the `{profile}` sensors:",
+                "",
+                fault_table(other["controllers"], other["faulted"], other["fault_effect"], name).rstrip(),
+                "",
+            ]
         if (sub / "plot_fault.png").is_file():
             fig = _figure(sub / "plot_fault.png", fig_dir, f"fault_{name}.png", doc)
             lines += [f"![{name}]({fig})", ""]
