@@ -124,10 +124,10 @@ class _Delayed(Scenario):
 
     input_delay: float = 0.15
 
-    def make_plant(self, seed: int = 0) -> Plant:
+    def make_car_plant(self, seed: int = 0) -> Plant:
         zoo = self.zoo_car
         assert zoo is not None
-        return self.car.sensors.wrap(zoo.make_plant(seed, input_delay=self.input_delay), seed)
+        return zoo.make_plant(seed, input_delay=self.input_delay)
 
 
 def test_a_steering_delay_of_150_ms_is_recovered_within_a_control_period(identified):
