@@ -148,3 +148,11 @@ def test_a_job_s_warnings_are_recorded_in_its_outcome_not_printed(n_jobs, capfd)
     assert out[1].warnings == ("UserWarning: odd 3", "RuntimeWarning: late")
     assert not out[2].ok and out[2].warnings == ("UserWarning: odd -1", "RuntimeWarning: late")
     assert "odd" not in capfd.readouterr().err
+
+
+@pytest.mark.parametrize("n_jobs", [1, 2])
+def test_a_warning_the_caller_ignores_is_ignored_in_every_worker(n_jobs):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        (out,) = run_jobs([Job("warns", _warn_twice, (3,))], n_jobs=n_jobs, backend="loky")
+    assert out.warnings == ("UserWarning: odd 3",)

@@ -52,7 +52,7 @@ import warnings
 from collections import Counter
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field, replace
-from typing import Any, Protocol
+from typing import Any, Protocol, cast
 
 import joblib
 
@@ -180,14 +180,29 @@ def limit_threads() -> None:
         torch.set_num_threads(1)
 
 
-def _run_one(index: int, job: Job, single_thread: bool, parent: int | None = None) -> JobOutcome:
-    """Worker side: run one job and catch its failure; a local worker ends with its ``parent``."""
+#: A warnings filter as :data:`warnings.filters` holds it: action, message, category, module, line.
+WarningFilter = tuple[str, Any, Any, Any, int]
+
+
+def _run_one(
+    index: int,
+    job: Job,
+    single_thread: bool,
+    parent: int | None = None,
+    filters: Sequence[WarningFilter] = (),
+) -> JobOutcome:
+    """Worker side: run one job and catch its failure; a local worker ends with its ``parent``.
+
+    The job's warnings are filtered by the calling process's ``filters`` (what it ignores, a
+    worker ignores too) and recorded.
+    """
     if parent is not None:
         watch_parent(parent)
     if single_thread:
         limit_threads()
     t0 = time.perf_counter()
     with warnings.catch_warnings(record=True) as caught:
+        _use_filters(filters)
         try:
             value = job.func(*job.args, **dict(job.kwargs))
         except Exception as exc:
@@ -208,6 +223,15 @@ def _run_one(index: int, job: Job, single_thread: bool, parent: int | None = Non
         seconds=time.perf_counter() - t0,
         warnings=_messages(caught),
     )
+
+
+def _use_filters(filters: Sequence[WarningFilter]) -> None:
+    """Make ``filters`` (a snapshot of :data:`warnings.filters`, in order) the warnings filters.
+
+    Called first inside :class:`warnings.catch_warnings`, which restores the process's own ones
+    and, on entering, has marked every warning registry stale: nothing is cached before this.
+    """
+    cast(list[WarningFilter], warnings.filters)[:] = filters
 
 
 def _messages(caught: Iterable[warnings.WarningMessage]) -> tuple[str, ...]:
@@ -336,7 +360,8 @@ def _run(
     config, started_ray = backend_config(backend, n_jobs, address)
     keys = {i: job.key for i, job in todo}
     parent = os.getpid() if backend == "loky" else None  # local workers end with this process
-    calls = (joblib.delayed(_run_one)(i, job, single_thread, parent) for i, job in todo)
+    filters = tuple(warnings.filters)  # the workers filter the jobs' warnings as this process does
+    calls = (joblib.delayed(_run_one)(i, job, single_thread, parent, filters) for i, job in todo)
     try:
         with joblib.parallel_config(**config):
             for outcome in _results(calls, unordered=backend != "ray"):
