@@ -26,11 +26,11 @@ class Fault(ABC):
         True for a change of the car itself (its grip, its mass): applied to the car's plant,
         which its sensors then measure. False for a change of the signals between car and
         controller (measurement noise, a command delay): applied to what the controller sees and
-        commands, after the sensors.
+        commands, after the sensors (the default).
     """
 
     name: ClassVar[str]
-    changes_car: ClassVar[bool]
+    changes_car: ClassVar[bool] = False
 
     @abstractmethod
     def apply(self, plant: Plant, scenario: Scenario, seed: int) -> Plant:
