@@ -189,12 +189,12 @@ def _run_one(
     job: Job,
     single_thread: bool,
     parent: int | None = None,
-    filters: Sequence[WarningFilter] = (),
+    filters: Sequence[WarningFilter] | None = None,
 ) -> JobOutcome:
     """Worker side: run one job and catch its failure; a local worker ends with its ``parent``.
 
-    The job's warnings are filtered by the calling process's ``filters`` (what it ignores, a
-    worker ignores too) and recorded.
+    The job's warnings are recorded, filtered by the calling process's ``filters`` (what it
+    ignores, a worker ignores too; None: this process's own filters).
     """
     if parent is not None:
         watch_parent(parent)
@@ -202,7 +202,8 @@ def _run_one(
         limit_threads()
     t0 = time.perf_counter()
     with warnings.catch_warnings(record=True) as caught:
-        _use_filters(filters)
+        if filters is not None:
+            _use_filters(filters)
         try:
             value = job.func(*job.args, **dict(job.kwargs))
         except Exception as exc:
