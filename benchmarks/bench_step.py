@@ -78,14 +78,13 @@ def learned_cases(scenario: Scenario, kmpc_model: Path | None) -> tuple[list[Cas
         model_files=() if kmpc_model is None else (("kmpc", str(kmpc_model)),),
     )
     # Identification keeping a servo or the tyres nominal on these laps is right, but a warning per
-    # fit buries the table: they are counted here and written to the JSON (``learning_warnings``).
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", IdentificationWarning)
+    # fit buries the table: as the CLI does, they are read from the models' records instead,
+    # counted here and written to the JSON (``learning_warnings``).
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", IdentificationWarning)
         models, training = learn_models(scenario, study.plan())
-    told = [str(w.message) for w in caught if issubclass(w.category, IdentificationWarning)]
-    for w in caught:
-        if not issubclass(w.category, IdentificationWarning):
-            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    identified = [r.identified for r in training.models.values() if r.identified is not None]
+    told = [w for model in identified for w in model.every_warning]
     if told:
         print(f"{len(told)} identification warnings while learning (kept nominal; in the JSON): {told[0]}")
     for name in names:

@@ -119,8 +119,7 @@ def make_model(
         )
         if isinstance(learned.model, KoopmanModel):
             return learned.model, _record(learned, collect_time_s=collected if collected > 0.5 else None)
-        tyres = learned.model.tyres
-        for warning in (*learned.model.warnings, *(tyres.warnings if tyres is not None else ())):
+        for warning in learned.model.every_warning:
             if say is not None:
                 say(f"{recipe.controller}: identification warning: {warning}")
         record = ModelRecord(

@@ -287,14 +287,13 @@ def describe_learned(learned: Learned, out: str | Path) -> list[str]:
         if err and isinstance(learned.recipe.learner, KoopmanLearner):
             steps = [k for k in (1, 10, len(err)) if k <= len(err)]
             unit = prediction_error_unit(learned.recipe.learner)
-            lines.append(
-                f"held-out prediction error ({unit}): "
-                + ", ".join(f"{err[k - 1]:.4f} at step {k}" for k in steps)
-            )
+            lines.append(f"held-out prediction error ({unit}): {_at_steps(err, steps)}")
             none = report.no_correction_error
             if len(none) == len(err):
-                lines.append(
-                    "no correction (U_p = the command), same windows: "
-                    + ", ".join(f"{none[k - 1]:.4f} at step {k}" for k in steps)
-                )
+                lines.append(f"no correction (U_p = the command), same windows: {_at_steps(none, steps)}")
     return lines
+
+
+def _at_steps(errors: list[float], steps: list[int]) -> str:
+    """``errors`` (one per horizon step) at the given steps (counted from 1), in words."""
+    return ", ".join(f"{errors[k - 1]:.4f} at step {k}" for k in steps)

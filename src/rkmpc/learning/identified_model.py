@@ -191,6 +191,11 @@ class IdentifiedModel:
             )
 
     @property
+    def every_warning(self) -> tuple[str, ...]:
+        """The identification's warnings, the tyres' after the servo's and understeer's."""
+        return (*self.warnings, *(self.tyres.warnings if self.tyres is not None else ()))
+
+    @property
     def error_ratio(self) -> float:
         """Held-out yaw-rate RMSE of this model over the nominal model's (< 1: better); NaN if unmeasured."""
         if not (self.nominal_rmse > 0.0):

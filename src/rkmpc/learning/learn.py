@@ -166,7 +166,7 @@ def learn(
             recipe=recipe,
             model=ident,
             report=None,
-            warnings=(*warned, *ident.warnings, *(ident.tyres.warnings if ident.tyres else ())),
+            warnings=(*warned, *ident.every_warning),
             metadata=metadata,
         )
 
