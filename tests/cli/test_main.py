@@ -4,6 +4,8 @@ import pytest
 
 from rkmpc.analysis.metrics import METRIC_KEYS
 from rkmpc.cli import main
+from rkmpc.cli.compare import FAILED
+from rkmpc.core.errors import OutputError, RkmpcError
 
 
 def test_run_writes_log_metrics_and_plot(tmp_path):
@@ -49,6 +51,34 @@ def test_compare_writes_results_and_table(tmp_path, capsys):
     table = (out / "table.md").read_text()
     assert "| lmpc |" in table and "| pp |" in table
     assert "lmpc" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("error", [OutputError("disk full"), RuntimeError("a bug")])
+def test_compare_keeps_the_first_sensors_results_when_the_second_fails(tmp_path, capsys, monkeypatch, error):
+    import rkmpc.experiments.compare as module
+
+    real_compare = module.compare
+
+    def failing_with_real_sensors(config, **kwargs):
+        if config.car.sensors.name == "f1tenth-real":
+            raise error
+        return real_compare(config, **kwargs)
+
+    monkeypatch.setattr(module, "compare", failing_with_real_sensors)
+    out = tmp_path / "cmp"
+    args = ["compare", "--controllers", "pp,lmpc", "--track", "oval", "--out", str(out)]
+    if isinstance(error, RkmpcError):
+        assert main(args) == 2
+    else:
+        with pytest.raises(RuntimeError, match="a bug"):
+            main(args)
+    assert set(json.loads((out / "results.json").read_text())["controllers"]) == {"pp", "lmpc"}
+    failed = out / "sensors-f1tenth-real" / FAILED
+    assert failed.read_text() == f"{type(error).__name__}: {error}\n"
+    assert not (out / "sensors-f1tenth-real" / "results.json").exists()
+    err = capsys.readouterr().err
+    assert "f1tenth-real sensors failed" in err and "is kept" in err
+    assert [p.name for p in tmp_path.iterdir()] == ["cmp"]
 
 
 def test_bad_track_file_is_a_clear_error(tmp_path, capsys):

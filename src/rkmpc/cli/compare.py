@@ -8,7 +8,10 @@ from typing import Any
 
 from rkmpc.cli.common import car_config, split_controllers
 
-__all__ = ["GUARD_SHARE", "cmd_compare", "degraded", "model_files"]
+__all__ = ["FAILED", "GUARD_SHARE", "cmd_compare", "degraded", "model_files"]
+
+#: File in ``OUT/sensors-PROFILE/`` that says why the comparison with those sensors failed.
+FAILED = "failed.txt"
 
 
 def model_files(names: list[str], specs: list[str]) -> dict[str, str]:
@@ -52,7 +55,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     from rich.console import Console
 
     from rkmpc.analysis.tables import fault_table, rich_tables_fitting
-    from rkmpc.core.io import output_folder
+    from rkmpc.core.io import output_folder, write_text_atomic
     from rkmpc.experiments.report import lateral_limit_of, title_of
 
     car = car_config(args)
@@ -68,6 +71,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     for config in configs:
         # A bad track, scale, car, profile or fault is refused before any folder is made.
         config.check_fault(config.scenario())
+    failure: Exception | None = None
     with output_folder(args.out, force=args.force, markers=markers) as out:
         results = []
         for profile, config in zip(profiles, configs, strict=True):
@@ -75,9 +79,16 @@ def cmd_compare(args: argparse.Namespace) -> int:
             folder.mkdir(exist_ok=True)
             if profile is not None:
                 console.print(f"the same with the {profile} sensors (docs/sensors.md)")
-            results.append(_drive(config, folder, single, console))
+            try:
+                results.append(_drive(config, folder, single, console))
+            except Exception as error:
+                if profile is None:
+                    raise
+                # The first comparison is complete and kept; the error is raised once it is saved.
+                failure = error
+                write_text_atomic(folder / FAILED, f"{type(error).__name__}: {error}\n")
     wide = Console(width=None if Console().is_terminal else 100)
-    for profile, result in zip(profiles, results, strict=True):
+    for profile, result in zip(profiles, results, strict=False):
         title = title_of(result) + ("" if profile is None else f", {profile} sensors")
         limit = lateral_limit_of(result)
         for table in rich_tables_fitting(result.metrics(), title, wide.width, lateral_limit=limit):
@@ -85,6 +96,12 @@ def cmd_compare(args: argparse.Namespace) -> int:
         if result.fault is not None:
             faulted = {name: run.metrics for name, run in result.fault.runs.items()}
             wide.print(fault_table(result.metrics(), faulted, result.fault.effects, result.fault.fault))
+    if failure is not None:
+        console.print(
+            f"[red]the comparison with the {also} sensors failed; the one with the {car.sensors.name} "
+            f"sensors is kept in {args.out}/ ({args.out}/sensors-{also}/{FAILED} says why)[/red]"
+        )
+        raise failure
     console.print(f"results in {args.out}/" + ("" if len(profiles) == 1 else f" (and sensors-{also}/)"))
     return 0
 
