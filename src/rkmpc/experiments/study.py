@@ -24,7 +24,7 @@ from rkmpc.experiments.backends import BACKENDS, check_backend
 from rkmpc.experiments.journal import JobJournal
 from rkmpc.experiments.parallel import Job, JobOutcome, ProgressCallback, run_jobs
 
-__all__ = ["Parallel", "Study", "StudyResult", "StudyRun", "run_study", "study_versions"]
+__all__ = ["ConfigJournal", "Parallel", "Study", "StudyResult", "StudyRun", "run_study", "study_versions"]
 
 Say = Callable[[str], None]
 
@@ -128,6 +128,27 @@ class Study(Protocol[R]):
     def result(self, outcomes: list[JobOutcome], run: StudyRun) -> R:
         """The study's typed result from its jobs' outcomes (in job order)."""
         ...
+
+
+class ConfigJournal:
+    """The journal of a study whose settings are its ``config`` and whose jobs each return a ``run_type``.
+
+    A journal is reused only by a study of the same ``config.to_json()``; a job's value is stored as
+    its ``to_json()`` and read back with ``run_type.from_json``.
+    """
+
+    config: Any
+    #: The type every job returns.
+    run_type: ClassVar[Any]
+
+    def journal_settings(self) -> dict[str, Any]:
+        return dict(self.config.to_json())
+
+    def encode(self, value: Any) -> dict[str, Any]:
+        return dict(value.to_json())
+
+    def decode(self, data: Any) -> Any:
+        return self.run_type.from_json(data)
 
 
 def run_study(

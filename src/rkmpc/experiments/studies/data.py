@@ -20,7 +20,7 @@ from rkmpc.experiments.parallel import Job, JobOutcome
 from rkmpc.experiments.runs import run_controller
 from rkmpc.experiments.studies.common import json_object
 from rkmpc.experiments.studies.data_job import DEFAULT_SIZES, DataRun, DataStudyConfig, data_job
-from rkmpc.experiments.study import Say, StudyRun
+from rkmpc.experiments.study import ConfigJournal, Say, StudyRun
 from rkmpc.sim.run import RunSpec
 
 __all__ = ["DEFAULT_SIZES", "DataJob", "DataStudy", "DataStudyConfig", "DataStudyResult"]
@@ -202,7 +202,7 @@ class DataStudyResult:
 
 
 @dataclass(frozen=True)
-class DataStudy:
+class DataStudy(ConfigJournal):
     """RKMPC and KMPC as the number of training samples grows (``rkmpc study data``).
 
     One job per (controller, size, seed): ``L`` LMPC laps of the track (the fewest, at least
@@ -216,6 +216,7 @@ class DataStudy:
 
     config: DataStudyConfig
     name: ClassVar[str] = "data"
+    run_type: ClassVar[type[DataRun]] = DataRun
 
     def keys(self) -> list[tuple[str, int, int]]:
         cfg = self.config
@@ -229,15 +230,6 @@ class DataStudy:
             Job(f"{c} {size} seed {seed}", data_job, (self.config, c, size, seed))
             for c, size, seed in self.keys()
         ]
-
-    def journal_settings(self) -> dict[str, Any]:
-        return self.config.to_json()
-
-    def encode(self, value: DataRun) -> dict[str, Any]:
-        return value.to_json()
-
-    def decode(self, data: Any) -> DataRun:
-        return DataRun.from_json(data)
 
     def result(self, outcomes: list[JobOutcome], run: StudyRun) -> DataStudyResult:
         jobs = [

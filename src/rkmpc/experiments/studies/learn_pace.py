@@ -25,7 +25,7 @@ from rkmpc.experiments.parallel import Job, JobOutcome
 from rkmpc.experiments.studies.common import check_car, check_scale, check_track, json_object, track_label
 from rkmpc.experiments.studies.pace_job import PaceStudyConfig
 from rkmpc.experiments.studies.pace_rules import Pace, car_ladder, check_ladder, pace_label, run_verdict
-from rkmpc.experiments.study import Say, StudyRun
+from rkmpc.experiments.study import ConfigJournal, Say, StudyRun
 from rkmpc.learning.data.dataset import TransitionDataset
 from rkmpc.learning.recipes import DataSource, recipe_for
 from rkmpc.sim.closed_loop import SimResult
@@ -341,11 +341,12 @@ def _given(data: TransitionDataset) -> Callable[[], TransitionDataset]:
 
 
 @dataclass(frozen=True)
-class LearnPaceStudy:
+class LearnPaceStudy(ConfigJournal):
     """Learning to race on one track (``rkmpc learn-pace``): one job, the whole climb."""
 
     config: LearnPaceConfig
     name: ClassVar[str] = "learn-pace"
+    run_type: ClassVar[type[LearnPaceRun]] = LearnPaceRun
 
     def prepare(self, say: Say) -> None:
         """Nothing shared: the climb learns at every iteration."""
@@ -354,15 +355,6 @@ class LearnPaceStudy:
         return [
             Job(f"{track_label(self.config.track)} {self.config.controller}", learn_pace_job, (self.config,))
         ]
-
-    def journal_settings(self) -> dict[str, Any]:
-        return self.config.to_json()
-
-    def encode(self, value: LearnPaceRun) -> dict[str, Any]:
-        return value.to_json()
-
-    def decode(self, data: Any) -> LearnPaceRun:
-        return LearnPaceRun.from_json(data)
 
     def result(self, outcomes: list[JobOutcome], run: StudyRun) -> LearnPaceResult:
         out = outcomes[0]
