@@ -101,7 +101,7 @@ def test_ridge_matches_the_normal_equations_and_shrinks():
 def test_torch_ridge_solve_agrees_with_numpy():
     import torch
 
-    from rkmpc.learning.koopman.training import ridge_solve
+    from rkmpc.learning.koopman.torch_ops import ridge_solve
 
     rng = np.random.default_rng(2)
     Phi, T = rng.normal(size=(80, 5)), rng.normal(size=(80, 3))

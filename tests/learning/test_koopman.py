@@ -12,7 +12,7 @@ from rkmpc.core.errors import InputFileError, ParameterError
 from rkmpc.learning.koopman.io import FORMAT_NAME
 from rkmpc.learning.koopman.lifting import MLPLifting, MLPTraining, RBFLifting
 from rkmpc.learning.koopman.model import KoopmanModel
-from rkmpc.learning.koopman.training import consecutive_windows
+from rkmpc.learning.koopman.windows import consecutive_windows
 
 DATA = Path(__file__).resolve().parents[1] / "data"
 

@@ -95,7 +95,7 @@ def _perturb(net, seed: int) -> None:
 def test_numpy_copy_matches_torch(states):
     import torch
 
-    from rkmpc.learning.koopman.training import make_torch_mlp, network_arrays
+    from rkmpc.learning.koopman.torch_ops import make_torch_mlp, network_arrays
 
     mean, std = standardisation(states)
     scaled = (states - mean) / std
@@ -113,7 +113,7 @@ def test_numpy_copy_matches_torch(states):
 
 
 def test_mlp_arrays_round_trip(states):
-    from rkmpc.learning.koopman.training import make_torch_mlp, network_arrays
+    from rkmpc.learning.koopman.torch_ops import make_torch_mlp, network_arrays
 
     mean, std = standardisation(states)
     lift = MLPLifting().set_network(*network_arrays(make_torch_mlp(3, (8, 5), 4, seed=0)), mean, std)
@@ -127,7 +127,7 @@ def test_mlp_arrays_round_trip(states):
 def test_make_torch_mlp_is_seeded_and_leaves_global_rng_alone():
     import torch
 
-    from rkmpc.learning.koopman.training import make_torch_mlp
+    from rkmpc.learning.koopman.torch_ops import make_torch_mlp
 
     torch.manual_seed(123)
     before = torch.rand(3)

@@ -182,13 +182,16 @@ class Controller(ABC):
     measured_fields: tuple[str, ...] = ()
     #: The field of :class:`~rkmpc.control.settings.ControllerSettings` it is configured by (or None).
     settings_field: str | None = None
+    #: Whether it is built from a learned or identified model (:meth:`from_settings` passes it).
+    takes_model: bool = False
 
     @classmethod
     def from_settings(
         cls, reference: Reference, vehicle: VehicleParams, settings: Any, model: object = None
     ) -> Controller:
-        """This controller for a car: its field of ``settings`` (:attr:`settings_field`) and, for a
-        learned controller, its ``model`` (subclasses that take one override this).
+        """This controller for a car: its field of ``settings`` (:attr:`settings_field`) and, when
+        :attr:`takes_model`, its learned or identified ``model`` (subclasses built differently
+        override this).
 
         ``settings`` is the car's :class:`rkmpc.control.settings.ControllerSettings` (a module above
         this one: it holds the settings classes of the controllers built on this base).
@@ -196,16 +199,17 @@ class Controller(ABC):
         Raises
         ------
         ParameterError
-            When a model is given to a controller that takes none.
+            When a model is given to a controller that takes none, or none to one that needs it.
         """
-        if model is not None:
+        build: Any = cls  # every registered controller takes (reference, vehicle[, model][, its settings])
+        args: list[object] = [reference, vehicle]
+        if cls.takes_model:
+            args.append(cls.require_model(model))
+        elif model is not None:
             raise ParameterError(f"controller {cls.name!r} takes no model")
-        build: Any = cls  # every registered controller takes (reference, vehicle[, its settings])
-        made: Controller
-        if cls.settings_field is None:
-            made = build(reference, vehicle)
-        else:
-            made = build(reference, vehicle, getattr(settings, cls.settings_field))
+        if cls.settings_field is not None:
+            args.append(getattr(settings, cls.settings_field))
+        made: Controller = build(*args)
         return made
 
     @classmethod

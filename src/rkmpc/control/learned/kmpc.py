@@ -30,7 +30,6 @@ from rkmpc.core.observation import Observation
 from rkmpc.vehicle.params import VehicleParams
 
 if TYPE_CHECKING:
-    from rkmpc.control.settings import ControllerSettings
     from rkmpc.track.reference import Reference, ReferenceHorizon
 
 __all__ = ["KoopmanMPC"]
@@ -53,17 +52,13 @@ class KoopmanMPC(TrackingController):
     """
 
     name = "kmpc"
+    settings_field = "lmpc"
+    takes_model = True
     #: The features the model was trained on (its recipe's), read from the live observation the same way.
     state = recipe_state("kmpc")
     #: The model's state includes them: NaN (not measured) is refused as invalid input.
     measured_fields = ("yaw_rate", "steer_angle")
     config: LMPCConfig
-
-    @classmethod
-    def from_settings(
-        cls, reference: Reference, vehicle: VehicleParams, settings: ControllerSettings, model: object = None
-    ) -> KoopmanMPC:
-        return cls(reference, vehicle, cls.require_model(model), settings.lmpc)  # type: ignore[arg-type]
 
     def __init__(
         self,

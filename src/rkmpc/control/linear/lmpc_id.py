@@ -60,7 +60,6 @@ from rkmpc.learning.servo_fit import delay_periods
 from rkmpc.vehicle.params import VehicleParams
 
 if TYPE_CHECKING:
-    from rkmpc.control.settings import ControllerSettings
     from rkmpc.track.reference import Reference, ReferenceHorizon
 
 
@@ -87,12 +86,7 @@ class IdentifiedLMPC(LinearMPC):
     """
 
     name = "lmpc-id"
-
-    @classmethod
-    def from_settings(
-        cls, reference: Reference, vehicle: VehicleParams, settings: ControllerSettings, model: object = None
-    ) -> IdentifiedLMPC:
-        return cls(reference, vehicle, cls.require_model(model), settings.lmpc)  # type: ignore[arg-type]
+    takes_model = True
 
     def __init__(
         self,

@@ -2,18 +2,22 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from rkmpc.config.car import CarConfig
+from rkmpc.config.loader import load_preset
 from rkmpc.control.registry import CONTROLLERS
 from rkmpc.core.errors import ParameterError
 from rkmpc.core.jsonutil import to_json_ready
 from rkmpc.core.validation import is_integer, is_positive_number
+from rkmpc.experiments.cache import ModelCache
 from rkmpc.track.builtin import list_builtin_tracks
 
 __all__ = [
+    "MultiTrackConfig",
     "check_car",
     "check_scale",
     "check_track",
@@ -55,6 +59,45 @@ def str_tuple(name: str, values: Any) -> tuple[str, ...]:
     if len(set(out)) != len(out):
         raise ParameterError(f"{name} must not repeat values, got {list(out)}")
     return out
+
+
+@dataclass(frozen=True, kw_only=True)
+class MultiTrackConfig:
+    """The settings every study over several tracks has (its subclasses add their own).
+
+    Parameters
+    ----------
+    tracks : sequence of str
+        Built-in track names or centre-line CSV paths (see :func:`expand_tracks`).
+    car : CarConfig
+        The car: its model, plant, sensors, controllers' settings, training and limits.
+    controllers : sequence of str
+        Registered controller names; a comma-separated string is accepted.
+    scale : float or None
+        Track scale (default: the car's).
+    cache_dir : str or None
+        Model cache folder (default when None).
+    use_cache : bool
+        Read and write trained models in the cache.
+    """
+
+    tracks: Sequence[str]
+    car: CarConfig = field(default_factory=lambda: load_preset("f1tenth"))
+    controllers: Sequence[str] = ()
+    scale: float | None = None
+    cache_dir: str | None = None
+    use_cache: bool = True
+
+    def __post_init__(self) -> None:
+        name = type(self).__name__
+        object.__setattr__(self, "tracks", track_specs(f"{name}.tracks", self.tracks))
+        object.__setattr__(self, "controllers", controller_names(f"{name}.controllers", self.controllers))
+        check_car(f"{name}.car", self.car)
+        check_scale(f"{name}.scale", self.scale)
+
+    def cache(self) -> ModelCache | None:
+        """The model cache to read and write, or None."""
+        return ModelCache(self.cache_dir) if self.use_cache else None
 
 
 def check_track(spec: str) -> None:

@@ -17,24 +17,19 @@ clean (higher paces are not tried). Every step records which data its model lear
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass
 from typing import Any
 
 from rkmpc.analysis.metrics import LapMetrics
-from rkmpc.config.car import CarConfig
-from rkmpc.config.loader import load_preset
 from rkmpc.core.errors import ParameterError, RkmpcError
 from rkmpc.core.validation import is_integer
 from rkmpc.experiments.cache import ModelCache
 from rkmpc.experiments.models import excitation_model, make_model
 from rkmpc.experiments.runs import run_controller
 from rkmpc.experiments.studies.common import (
-    check_car,
-    check_scale,
-    controller_names,
+    MultiTrackConfig,
     json_object,
     track_label,
-    track_specs,
 )
 from rkmpc.experiments.studies.pace_rules import Pace, car_ladder, check_ladder, data_verdict, run_verdict
 from rkmpc.learning.recipes import DataSource, Recipe, recipe_for
@@ -56,48 +51,30 @@ PACE_CONTROLLERS = ("lmpc", "lmpc-id", "rkmpc", "nmpc-dynamic")
 
 
 @dataclass(frozen=True, kw_only=True)
-class PaceStudyConfig:
-    """Settings of the pace study.
+class PaceStudyConfig(MultiTrackConfig):
+    """Settings of the pace study: :class:`MultiTrackConfig`'s (one job per track and controller;
+    the car's training settings say the laps of data learned from at each pace, and its limits are
+    scaled to each pace of the ladder) and:
 
     Parameters
     ----------
-    tracks : sequence of str
-        Built-in names or centre-line CSV paths; one job per (track, controller).
-    car : CarConfig
-        The car: its model, plant, controllers' settings, training (seed, laps of data learned
-        from at each pace, epochs, samples) and limits, scaled to each pace of the ladder.
-    controllers : sequence of str
-        Controllers that climb the ladder; a comma-separated string is accepted.
     paces : sequence of (float, float) or None
         The ladder, ``(lateral_accel, max_speed)`` increasing; None: the car's
         (:func:`~rkmpc.experiments.studies.pace_rules.car_ladder`: from the car's own pace).
-    scale : float or None
-        Track scale (default: the car's).
     run_laps : int
         Laps each controller drives at each pace (all must be clean).
-    cache_dir : str or None
-        Model cache folder (default when None).
-    use_cache : bool
-        Read and write trained models in the cache.
     """
 
-    tracks: Sequence[str]
-    car: CarConfig = field(default_factory=lambda: load_preset("f1tenth"))
     controllers: Sequence[str] = PACE_CONTROLLERS
     paces: Sequence[Pace] | None = None
-    scale: float | None = None
     run_laps: int = 1
-    cache_dir: str | None = None
-    use_cache: bool = True
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "tracks", track_specs("PaceStudyConfig.tracks", self.tracks))
-        controllers = controller_names("PaceStudyConfig.controllers", self.controllers)
-        object.__setattr__(self, "controllers", controllers)
-        check_scale("PaceStudyConfig.scale", self.scale)
-        car = check_car("PaceStudyConfig.car", self.car)
+        super().__post_init__()
         paces = (
-            check_ladder("PaceStudyConfig.paces", self.paces) if self.paces is not None else car_ladder(car)
+            check_ladder("PaceStudyConfig.paces", self.paces)
+            if self.paces is not None
+            else car_ladder(self.car)
         )
         object.__setattr__(self, "paces", paces)
         if not is_integer(self.run_laps, 1):
@@ -117,10 +94,6 @@ class PaceStudyConfig:
     def scenario(self, track: str, pace: Pace) -> Scenario:
         """The track and car at ``pace``: the car's limits at that lateral limit and top speed."""
         return Scenario.from_car(self.car.at_pace(*pace), track, scale=self.scale)
-
-    def cache(self) -> ModelCache | None:
-        """The model cache to read and write, or None."""
-        return ModelCache(self.cache_dir) if self.use_cache else None
 
     def to_json(self) -> dict[str, Any]:
         """The settings, the car written out whole."""

@@ -10,12 +10,11 @@ that raises is recorded (its message in the result) and the others go on.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, ClassVar
 
 from rkmpc.analysis.statistics import ControllerSummary, RunGroup, RunRow, summarise_runs
 from rkmpc.config.car import CarConfig
-from rkmpc.config.loader import load_preset
 from rkmpc.core.errors import ParameterError
 from rkmpc.experiments.compare import LEARNED_CONTROLLERS, CompareConfig, compare
 from rkmpc.experiments.journal import canonical_json
@@ -23,13 +22,10 @@ from rkmpc.experiments.models import excitation_model
 from rkmpc.experiments.parallel import Job, JobOutcome
 from rkmpc.experiments.results import TrackResult
 from rkmpc.experiments.studies.common import (
-    check_car,
-    check_scale,
-    controller_names,
+    MultiTrackConfig,
     int_tuple,
     json_object,
     track_label,
-    track_specs,
 )
 from rkmpc.experiments.studies.tables import runs_table, summary_table
 from rkmpc.experiments.study import Say, StudyRun
@@ -46,56 +42,35 @@ __all__ = [
 
 
 @dataclass(frozen=True, kw_only=True)
-class TracksStudyConfig:
-    """Settings of the tracks study.
+class TracksStudyConfig(MultiTrackConfig):
+    """Settings of the tracks study: :class:`MultiTrackConfig`'s (the car's training seed is
+    replaced by each job's seed; ``controllers`` each job drives, the learned ones by default) and:
 
     Parameters
     ----------
-    tracks : sequence of str
-        Built-in track names or centre-line CSV paths (see
-        :func:`rkmpc.experiments.studies.common.expand_tracks`).
-    car : CarConfig
-        The car (its training seed is replaced by each job's seed).
-    controllers : sequence of str
-        Controllers each job drives; a comma-separated string is accepted.
     seeds : sequence of int
         Seeds (>= 0); one job per (track, seed). The seed sets the data collection, training and runs.
-    scale : float or None
-        Track scale (default: the car's).
     baseline : str or None
         Controller the changes in % are measured against (must be in ``controllers``); None for none.
     fault : str or None
         A fault every controller also drives with (:data:`rkmpc.sim.faults.FAULTS`).
     model_files : tuple of (str, str)
         ``(controller, path)`` models to use instead of learning.
-    cache_dir : str or None
-        Model cache folder (default when None).
-    use_cache : bool
-        Read and write trained models in the cache.
     """
 
-    tracks: Sequence[str]
-    car: CarConfig = field(default_factory=lambda: load_preset("f1tenth"))
     controllers: Sequence[str] = LEARNED_CONTROLLERS
     seeds: Sequence[int] = (0,)
-    scale: float | None = None
     baseline: str | None = "lmpc"
     fault: str | None = None
     model_files: tuple[tuple[str, str], ...] = ()
-    cache_dir: str | None = None
-    use_cache: bool = True
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "tracks", track_specs("TracksStudyConfig.tracks", self.tracks))
-        controllers = controller_names("TracksStudyConfig.controllers", self.controllers)
-        object.__setattr__(self, "controllers", controllers)
+        super().__post_init__()
         object.__setattr__(self, "seeds", int_tuple("TracksStudyConfig.seeds", self.seeds, minimum=0))
-        check_car("TracksStudyConfig.car", self.car)
-        check_scale("TracksStudyConfig.scale", self.scale)
-        if self.baseline is not None and self.baseline not in controllers:
+        if self.baseline is not None and self.baseline not in self.controllers:
             raise ParameterError(
                 f"TracksStudyConfig.baseline {self.baseline!r} is not among the controllers "
-                f"{list(controllers)}; add it or set baseline=None"
+                f"{list(self.controllers)}; add it or set baseline=None"
             )
         self.job_config(self.tracks[0], self.seeds[0])  # refuses what a comparison would refuse
 

@@ -139,6 +139,7 @@ class MLPLifting:
         # torch is imported here only: loading and using a fitted lifting does not need it.
         try:
             from rkmpc.learning.koopman import training as torch_training
+            from rkmpc.learning.koopman.torch_ops import torch_runtime
         except ImportError as exc:  # pragma: no cover - depends on the environment
             raise ImportError(
                 "training a lifting network needs PyTorch: pip install 'rkmpc[train]' "
@@ -154,7 +155,7 @@ class MLPLifting:
         y_scale = None if Y is None else standardisation(Y)[1]
         data = torch_training.TrainingArrays(X=X, U=U, X_next=X_next, Y=Y, windows=windows)
         scaling = torch_training.Scaling(mean=mean, std=std, u_scale=u_scale, y_scale=y_scale)
-        with torch_training.torch_runtime():
+        with torch_runtime():
             result = torch_training.train_network(
                 data,
                 scaling,

@@ -14,8 +14,7 @@ towards zero, which would make ``L_a`` vanish without helping the prediction of 
 All quantities in the loss are in scaled units: states divided by their standard deviation, inputs by
 theirs. A run is seeded (:attr:`MLPTraining.seed`): the same data and settings give the same network,
 history and loss to the last bit. Importing this module pulls in torch; the rest of the package does not
-need it at inference time. The torch helpers of :mod:`rkmpc.learning.koopman.torch_ops` and
-:func:`~rkmpc.learning.koopman.windows.consecutive_windows` are re-exported here.
+need it at inference time.
 """
 
 from __future__ import annotations
@@ -36,22 +35,12 @@ from rkmpc.learning.koopman.torch_ops import (
     ridge_solve,
     rollout,
     set_torch_seed,
-    torch_runtime,
 )
-from rkmpc.learning.koopman.windows import consecutive_windows
 
 __all__ = [
     "Scaling",
     "TrainingArrays",
     "TrainingResult",
-    "consecutive_windows",
-    "make_torch_mlp",
-    "network_arrays",
-    "pseudo_huber",
-    "ridge_solve",
-    "rollout",
-    "set_torch_seed",
-    "torch_runtime",
     "train_network",
 ]
 
