@@ -289,16 +289,15 @@ class ResidualKoopmanMPC(_ResidualBase):
         return out
 
     def _add_slip_drift(self, e0: np.ndarray, observation: Observation, Phi: np.ndarray) -> None:
-        """Add to the predicted deviations ``e0`` (3N,) how a slip angle held over the horizon moves them.
-
-        The heading column of the prediction's ``Phi`` holds, in its position rows, the sums of
-        ``v_r T (-sin, cos)(theta_r)``: the displacement of a heading offset that never turns the
-        car, which is what a car sliding at a fixed angle to its heading adds.
-        """
+        """Add to the predicted deviations ``e0`` (3N,) how a slip angle held over the horizon moves them
+        (weighted by :meth:`RKMPCConfig.slip_drift_weight`). The heading column of ``Phi`` holds, in
+        its position rows, the sums of ``v_r T (-sin, cos)(theta_r)``: the displacement of a heading
+        offset that never turns the car, which is what a car sliding at a fixed angle adds."""
         beta = observation.slip_angle
         if not math.isfinite(beta):
             self.slip_unmeasured += 1
             return
+        beta *= self.config.slip_drift_weight(beta)
         for row in (0, 1):  # x and y of every step; the heading rows are not moved
             e0[row::3] += beta * Phi[row::3, 2]
 
