@@ -167,7 +167,7 @@ class RKMPCConfig(ResidualMPCConfig):
         if not (limit == math.inf or is_positive_number(limit)):
             raise ParameterError(
                 f"RKMPCConfig.slip_drift_limit must be a positive number of radians (inf: never), "
-                f"got {self.slip_drift_limit!r}"
+                f"got {limit!r}"
             )
         if not isinstance(self.trust, TrustConfig) or not isinstance(self.adaptation, AdaptationConfig):
             raise ParameterError("RKMPCConfig.trust and .adaptation must be TrustConfig and AdaptationConfig")
