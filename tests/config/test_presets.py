@@ -114,6 +114,7 @@ def test_the_f1tenth_preset_keeps_the_limits_and_the_controllers_defaults():
         position_weight=2.0,
         heading_weight=3.0,
         slip_drift=True,
+        slip_velocity_limit=0.5,
         lateral_guard=LateralGuardConfig(enabled=True),
         retimed=True,
     )

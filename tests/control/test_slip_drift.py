@@ -20,7 +20,7 @@ def _ideal_model() -> SimpleNamespace:
 
 
 def _gradient(sc, slip: float, drift: bool, limit: float = math.inf) -> tuple[np.ndarray, ResidualKoopmanMPC]:
-    cfg = replace(ResidualKoopmanMPC.default_config, slip_drift=drift, slip_drift_limit=limit)
+    cfg = replace(ResidualKoopmanMPC.default_config, slip_drift=drift, slip_velocity_limit=limit)
     ctrl = ResidualKoopmanMPC(sc.reference, sc.vehicle, _ideal_model(), config=cfg)
     p = sc.reference.path.position(3.0)
     obs = Observation(
@@ -85,22 +85,31 @@ def test_slip_drift_must_be_a_bool_and_is_refused_by_rkmpc_paper(builtin_scenari
         PaperResidualKoopmanMPC(sc.reference, sc.vehicle, _ideal_model(), config=cfg)
 
 
-def test_the_slip_drift_is_whole_below_half_its_limit_and_gone_at_it(builtin_scenario):
-    sc = builtin_scenario
-    assert ResidualKoopmanMPC.default_config.slip_drift_limit == math.inf  # off unless a car file sets it
+def test_the_slip_drift_is_whole_below_half_its_sideways_speed_limit_and_gone_at_it(builtin_scenario):
+    sc = builtin_scenario  # _gradient's car runs at 2 m/s: it slides sideways at 2 tan(beta)
+    assert ResidualKoopmanMPC.default_config.slip_velocity_limit == math.inf  # off unless a car file sets it
     f_off_small, _ = _gradient(sc, 0.04, drift=False)
     f_on_small, _ = _gradient(sc, 0.04, drift=True)
-    np.testing.assert_array_equal(_gradient(sc, 0.04, True, 0.1)[0], f_on_small)  # below 0.05: whole
+    whole, ctrl = _gradient(sc, 0.04, True, 0.2)
+    np.testing.assert_array_equal(whole, f_on_small)  # 0.080 m/s, under 0.1: whole, not counted
+    assert ctrl.diagnostics()["slip_drift_faded"] == 0.0
     f_off, _ = _gradient(sc, 0.075, drift=False)
     f_on, _ = _gradient(sc, 0.075, drift=True)
-    half, _ = _gradient(sc, 0.075, True, 0.1)  # 0.075 of 0.1: half the drift
-    np.testing.assert_allclose(half - f_off, 0.5 * (f_on - f_off), rtol=1e-9, atol=1e-12)
-    f_off_big, _ = _gradient(sc, 0.12, drift=False)
-    np.testing.assert_allclose(_gradient(sc, 0.12, True, 0.1)[0], f_off_big, rtol=1e-12, atol=1e-12)
+    part, ctrl = _gradient(sc, 0.075, True, 0.2)  # 0.150 m/s of 0.2: about half the drift, counted
+    assert ctrl.slip_drift_faded == 1 and ctrl.diagnostics()["slip_drift_faded"] == 1.0
+    ctrl.reset()
+    assert ctrl.slip_drift_faded == 0
+    weight = 2.0 - 2.0 * (2.0 * math.tan(0.075)) / 0.2
+    assert 0.45 < weight < 0.55
+    np.testing.assert_allclose(part - f_off, weight * (f_on - f_off), rtol=1e-9, atol=1e-12)
+    f_off_big, _ = _gradient(sc, 0.12, drift=False)  # 0.241 m/s, past 0.2: no drift
+    np.testing.assert_allclose(_gradient(sc, 0.12, True, 0.2)[0], f_off_big, rtol=1e-12, atol=1e-12)
+    # A slow car keeps a slip angle the fast one loses: the limit is on the sideways speed.
+    assert ctrl.config.slip_drift_weight(0.12, 0.5) == 1.0 and ctrl.config.slip_drift_weight(0.12, 2.0) == 0.0
     assert np.abs(f_on_small - f_off_small).max() > 1e-3
 
 
 @pytest.mark.parametrize("limit", [0.0, -0.1, math.nan, "0.1", True])
-def test_a_bad_slip_drift_limit_is_refused_by_name(limit):
-    with pytest.raises(ParameterError, match="slip_drift_limit"):
-        replace(ResidualKoopmanMPC.default_config, slip_drift_limit=limit)
+def test_a_bad_slip_velocity_limit_is_refused_by_name(limit):
+    with pytest.raises(ParameterError, match="slip_velocity_limit"):
+        replace(ResidualKoopmanMPC.default_config, slip_velocity_limit=limit)

@@ -125,11 +125,14 @@ class RKMPCConfig(ResidualMPCConfig):
         slip angle ``beta`` (rad, velocity direction minus heading) held over the horizon, the
         predicted position moves by ``v_r T beta`` per step across the reference heading. A
         step whose slip angle is not measured (NaN) goes without it, and is counted.
-    slip_drift_limit : float
-        Slip angle (rad, > 0; infinite: never) at which the drift is gone: held whole up to half
-        of it, then weighted down linearly to nothing at it. At the tyres' limit a sliding car
-        is the start of a spin that steering cannot correct, and a drift held there makes the
-        correction steer harder into the corner (``docs/pace.md``).
+    slip_velocity_limit : float
+        Sideways slip velocity ``v_x tan(beta)`` (m/s, > 0; infinite: never) at which the drift is
+        gone: held whole up to half of it, then weighted down linearly to nothing at it. A car
+        sliding sideways that fast is at the tyres' limit, the start of a spin that steering
+        cannot correct, and a drift held there makes the correction steer harder into the
+        corner (``docs/pace.md``). The drift moves the prediction by ``v T beta`` a step, so this
+        is its own speed; a slow car in a hairpin, whose slip angle is large because its
+        geometry makes it so, keeps its drift.
     trust : TrustConfig
         Out-of-distribution guard: how the correction fades toward the LMPC's command when the
         state leaves the model's training range or its predictions go wrong
@@ -149,7 +152,7 @@ class RKMPCConfig(ResidualMPCConfig):
 
     lateral_accel_weight: float = 0.0
     slip_drift: bool = False
-    slip_drift_limit: float = math.inf
+    slip_velocity_limit: float = math.inf
     trust: TrustConfig = field(default_factory=TrustConfig)
     adaptation: AdaptationConfig = field(default_factory=AdaptationConfig)
     lateral_guard: LateralGuardConfig = field(default_factory=LateralGuardConfig)
@@ -163,21 +166,23 @@ class RKMPCConfig(ResidualMPCConfig):
         for name in ("slip_drift", "retimed"):
             if not isinstance(getattr(self, name), bool):
                 raise ParameterError(f"RKMPCConfig.{name} must be True or False, got {getattr(self, name)!r}")
-        limit = self.slip_drift_limit
+        limit = self.slip_velocity_limit
         if not (limit == math.inf or is_positive_number(limit)):
             raise ParameterError(
-                f"RKMPCConfig.slip_drift_limit must be a positive number of radians (inf: never), "
+                f"RKMPCConfig.slip_velocity_limit must be a positive speed in m/s (inf: never), "
                 f"got {limit!r}"
             )
         if not isinstance(self.trust, TrustConfig) or not isinstance(self.adaptation, AdaptationConfig):
             raise ParameterError("RKMPCConfig.trust and .adaptation must be TrustConfig and AdaptationConfig")
 
-    def slip_drift_weight(self, beta: float) -> float:
-        """The share of slip angle ``beta`` (rad) the drift holds: 1 up to half of
-        :attr:`slip_drift_limit`, then down linearly to 0 at it (exactly 1 when it is infinite)."""
-        if self.slip_drift_limit == math.inf:
+    def slip_drift_weight(self, beta: float, speed: float) -> float:
+        """The share of slip angle ``beta`` (rad) the drift holds at ``speed`` (m/s, along the heading): 1 while the
+        sideways slip velocity ``|speed tan(beta)|`` is at most half of :attr:`slip_velocity_limit`,
+        then down linearly to 0 at it (exactly 1 when it is infinite)."""
+        if self.slip_velocity_limit == math.inf:
             return 1.0
-        return min(1.0, max(0.0, 2.0 - 2.0 * abs(beta) / self.slip_drift_limit))
+        sideways = abs(speed * math.tan(beta))
+        return min(1.0, max(0.0, 2.0 - 2.0 * sideways / self.slip_velocity_limit))
 
     def _scaled_own(self, length: float, speed: float) -> dict[str, float]:
         # The lateral acceleration a steering correction adds grows with speed**2 / length.

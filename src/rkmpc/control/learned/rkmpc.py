@@ -271,11 +271,14 @@ class ResidualKoopmanMPC(_ResidualBase):
         self._steer_diag = (steer, steer)
         #: Steps whose slip angle was not measured, so their prediction went without its drift.
         self.slip_unmeasured = 0
+        #: Steps that slid sideways faster than half of ``slip_velocity_limit``: drift faded.
+        self.slip_drift_faded = 0
 
     def _reset(self) -> None:
         super()._reset()
         self._last = None
         self.slip_unmeasured = 0
+        self.slip_drift_faded = 0
         if self._rls is not None:
             self._rls.reset()
             self._refresh_prediction()
@@ -286,6 +289,7 @@ class ResidualKoopmanMPC(_ResidualBase):
             out.update(rls_updates=float(self._rls.updates), rls_skipped=float(self._rls.skipped))
         if self.config.slip_drift:
             out["slip_unmeasured"] = float(self.slip_unmeasured)
+            out["slip_drift_faded"] = float(self.slip_drift_faded)
         return out
 
     def _add_slip_drift(self, e0: np.ndarray, observation: Observation, Phi: np.ndarray) -> None:
@@ -297,7 +301,10 @@ class ResidualKoopmanMPC(_ResidualBase):
         if not math.isfinite(beta):
             self.slip_unmeasured += 1
             return
-        beta *= self.config.slip_drift_weight(beta)
+        weight = self.config.slip_drift_weight(beta, observation.speed)
+        if weight < 1.0:
+            self.slip_drift_faded += 1
+        beta *= weight
         for row in (0, 1):  # x and y of every step; the heading rows are not moved
             e0[row::3] += beta * Phi[row::3, 2]
 
