@@ -71,6 +71,10 @@ def test_compare_learns_rkmpc_from_a_real_cars_sensors_and_drives_it():
         assert counts["ok"] >= 0.98 * run.metrics.steps, (name, counts)
     lmpc, rkmpc = (result.controllers[n].metrics.lateral_error_mean_m for n in ("lmpc", "rkmpc"))
     assert rkmpc < lmpc
+    # The run keeps the controller's own counts: every step had the estimator's slip angle.
+    diagnostics = result.controllers["rkmpc"].diagnostics
+    assert diagnostics["slip_unmeasured"] == 0.0 and diagnostics["estimator_updates"] > 500
+    assert result.controllers["lmpc"].to_json()["diagnostics"]["estimator_updates"] > 500
 
 
 @pytest.mark.slow

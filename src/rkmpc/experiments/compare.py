@@ -220,7 +220,10 @@ def compare(
             logs[label] = result.log
         if on_run is not None:
             on_run(label, result)
-        return ControllerRun(metrics=metrics, outcome=result.outcome, failure=result.failure), metrics
+        run = ControllerRun(
+            metrics=metrics, outcome=result.outcome, failure=result.failure, diagnostics=result.diagnostics
+        )
+        return run, metrics
 
     for name in config.controllers:
         refused = training.models[name].refused if name in training.models else None

@@ -45,19 +45,35 @@ class ControllerRun:
     failure : str or None
         The plant's message when ``outcome`` is ``"plant_failure"``, why the data or the model were
         refused when it is :data:`NOT_LEARNED`, else None.
+    diagnostics : Mapping[str, float]
+        The controller's own counts at the end of the run (``Controller.diagnostics()``: the steps
+        a guard, the trust or the slip drift's limit acted on, the estimator's rejections).
     """
 
     metrics: LapMetrics
     outcome: str
     failure: str | None = None
+    diagnostics: Mapping[str, float] = field(default_factory=dict)
 
     def to_json(self) -> dict[str, Any]:
-        return {**self.metrics.to_json(), "outcome": self.outcome, "failure": self.failure}
+        return {
+            **self.metrics.to_json(),
+            "outcome": self.outcome,
+            "failure": self.failure,
+            "diagnostics": {name: float(value) for name, value in self.diagnostics.items()},
+        }
 
     @classmethod
     def from_json(cls, data: Mapping[str, Any]) -> ControllerRun:
-        """A run read back from :meth:`to_json` output."""
-        return cls(metrics=LapMetrics.from_json(data), outcome=str(data["outcome"]), failure=data["failure"])
+        """A run read back from :meth:`to_json` output (results written before runs kept their
+        diagnostics read back with none)."""
+        diagnostics = data["diagnostics"] if "diagnostics" in data else {}
+        return cls(
+            metrics=LapMetrics.from_json(data),
+            outcome=str(data["outcome"]),
+            failure=data["failure"],
+            diagnostics={str(name): float(value) for name, value in diagnostics.items()},
+        )
 
 
 @dataclass(frozen=True)
