@@ -169,16 +169,15 @@ class RKMPCConfig(ResidualMPCConfig):
         limit = self.slip_velocity_limit
         if not (limit == math.inf or is_positive_number(limit)):
             raise ParameterError(
-                f"RKMPCConfig.slip_velocity_limit must be a positive speed in m/s (inf: never), "
-                f"got {limit!r}"
+                f"RKMPCConfig.slip_velocity_limit must be a positive speed in m/s (inf: never), got {limit!r}"
             )
         if not isinstance(self.trust, TrustConfig) or not isinstance(self.adaptation, AdaptationConfig):
             raise ParameterError("RKMPCConfig.trust and .adaptation must be TrustConfig and AdaptationConfig")
 
     def slip_drift_weight(self, beta: float, speed: float) -> float:
-        """The share of slip angle ``beta`` (rad) the drift holds at ``speed`` (m/s, along the heading): 1 while the
-        sideways slip velocity ``|speed tan(beta)|`` is at most half of :attr:`slip_velocity_limit`,
-        then down linearly to 0 at it (exactly 1 when it is infinite)."""
+        """The share of slip angle ``beta`` (rad) the drift holds at ``speed`` (m/s, along the
+        heading): 1 while the sideways slip velocity ``|speed tan(beta)|`` is at most half of
+        :attr:`slip_velocity_limit`, then down linearly to 0 at it (1 when it is infinite)."""
         if self.slip_velocity_limit == math.inf:
             return 1.0
         sideways = abs(speed * math.tan(beta))
