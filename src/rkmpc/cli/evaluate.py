@@ -75,6 +75,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         car.vehicle,
         horizons=ints(args.horizons, "--horizons"),
         estimator=car.estimator,
+        rkmpc=car.controllers.rkmpc,
         source=source,
     )
     text = result.to_markdown()

@@ -18,6 +18,17 @@ against the nominal kinematic bicycle driven by the same commands (``kinematic``
 ``koopman`` (kmpc)
     The lifted model predicts the pose in the car's frame and the speed itself.
 
+Where the car's ``rkmpc`` settings hold the slip drift (``[controllers.rkmpc] slip_drift``, on in the
+``f1tenth`` preset), two rows more say what ``rkmpc`` itself predicts with a residual model:
+
+``residual+drift``
+    The residual model's prediction with the start's slip angle held over the horizon: every step
+    travels at that angle to the predicted heading (weighted by
+    :meth:`~rkmpc.control.learned.residual_config.RKMPCConfig.slip_drift_weight`), as the residual
+    QP adds it to its prediction. A start without a slip angle goes without its drift.
+``kinematic+drift``
+    The same drift on the kinematic model: how much of that row the drift alone makes.
+
 Beside the models, the *exact inputs* (``exact-inputs``): the kinematic bicycle driven by the input
 ``U_p`` that reproduces each recorded step's travelled distance and heading change
 (:func:`rkmpc.learning.data.residuals.kinematic_inverse` of the truth), i.e. what a perfect model
@@ -67,9 +78,11 @@ __all__ = ["DEFAULT_HORIZONS", "Evaluation", "EvaluationRow", "evaluate", "model
 DEFAULT_HORIZONS = (1, 5, 10, 20)
 #: Longest horizon (steps): 200 steps are 10 s at 20 Hz.
 MAX_HORIZON = 200
-_X, _Y, _YAW, _SPEED, _STEER = (
-    OBSERVATION_FIELDS.index(n) for n in ("x", "y", "yaw", "speed", "steer_angle")
+_X, _Y, _YAW, _SPEED, _SLIP, _STEER = (
+    OBSERVATION_FIELDS.index(n) for n in ("x", "y", "yaw", "speed", "slip_angle", "steer_angle")
 )
+#: The row kinds of a prediction with ``rkmpc``'s slip drift, by the kind it is added to.
+DRIFT_KINDS = {"kinematic": "kinematic+drift", "residual": "residual+drift"}
 
 
 def model_kind(model: object) -> str:
@@ -104,18 +117,25 @@ def _starts(data: TransitionDataset, horizon: int) -> np.ndarray:
     return idx[episode[idx] == episode[idx + horizon - 1]]
 
 
-def _arcs(pose: np.ndarray, speed: np.ndarray, curvature: np.ndarray, dt: float) -> np.ndarray:
-    """Poses (M, H, 3) after each arc of ``speed`` and ``curvature`` (M, H) from ``pose`` (M, 3)."""
+def _arcs(
+    pose: np.ndarray, speed: np.ndarray, curvature: np.ndarray, dt: float, slip: np.ndarray | None = None
+) -> np.ndarray:
+    """Poses (M, H, 3) after each arc of ``speed`` and ``curvature`` (M, H) from ``pose`` (M, 3).
+
+    ``slip`` (M,): an angle (rad) at which every step of a start travels to its heading without
+    turning it (the slip drift); None: along the heading.
+    """
     m, h = speed.shape
     out = np.empty((m, h, 3))
     x, y, yaw = pose[:, 0].copy(), pose[:, 1].copy(), pose[:, 2].copy()
+    beta = np.zeros(m) if slip is None else slip
     for k in range(h):
         distance = speed[:, k] * dt
         half = 0.5 * distance * curvature[:, k]
         small = np.abs(half) < 1e-4
         chord = np.where(small, 1.0 - half * half / 6.0, np.sin(half) / np.where(small, 1.0, half))
-        x = x + distance * chord * np.cos(yaw + half)
-        y = y + distance * chord * np.sin(yaw + half)
+        x = x + distance * chord * np.cos(yaw + half + beta)
+        y = y + distance * chord * np.sin(yaw + half + beta)
         yaw = yaw + 2.0 * half
         out[:, k] = np.stack([x, y, yaw], axis=1)
     return out
@@ -126,6 +146,15 @@ def _window(values: np.ndarray, starts: np.ndarray, horizon: int) -> np.ndarray:
     return values[starts[:, None] + np.arange(horizon)[None, :]]
 
 
+def _drift(data: TransitionDataset, starts: np.ndarray, settings: RKMPCConfig) -> np.ndarray:
+    """The slip angle (rad, M) ``rkmpc``'s drift holds from each start: its weighted slip, 0 where
+    the start has none."""
+    obs = data.obs[starts]
+    slip = np.where(np.isfinite(obs[:, _SLIP]), obs[:, _SLIP], 0.0)
+    weight = [settings.slip_drift_weight(b, v) for b, v in zip(slip, obs[:, _SPEED], strict=True)]
+    return slip * np.asarray(weight, dtype=float)
+
+
 def _predict(
     kind: str,
     model: object,
@@ -133,13 +162,20 @@ def _predict(
     starts: np.ndarray,
     horizon: int,
     vehicle: VehicleParams,
+    settings: RKMPCConfig,
+    slip: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Predicted poses (M, H, 3) and speeds (M, H) after each step, from each start's state."""
+    """Predicted poses (M, H, 3) and speeds (M, H) after each step, from each start's state.
+
+    ``settings``: ``rkmpc``'s (the trust range of its correction); ``slip``: the drift's angles
+    (:func:`_drift`), for the kinematic and residual models only.
+    """
     commands = _window(data.command, starts, horizon)
     pose0 = data.obs[starts][:, [_X, _Y, _YAW]]
     length = vehicle.wheelbase
     if kind == "kinematic":
-        return _arcs(pose0, commands[..., 0], np.tan(commands[..., 1]) / length, data.dt), commands[..., 0]
+        curvature = np.tan(commands[..., 1]) / length
+        return _arcs(pose0, commands[..., 0], curvature, data.dt, slip), commands[..., 0]
     if kind == "identified" and isinstance(model, IdentifiedModel):
         wheel = _window(wheel_from_commands(model, data, vehicle), starts, horizon)
         speed = commands[..., 0]
@@ -157,13 +193,11 @@ def _predict(
             z = model.step(z, commands[:, k])
         # As rkmpc drives with it: the correction fades toward the command where the features
         # leave the model's training range (rkmpc.control.learned.trust).
-        trust = CorrectionTrust(
-            model.A_, model.B_, model.Cx_, model.x_min_, model.x_max_, RKMPCConfig().trust
-        )
+        trust = CorrectionTrust(model.A_, model.B_, model.Cx_, model.x_min_, model.x_max_, settings.trust)
         weight = trust.range_trust(features)[:, None, None]
         inputs = commands + weight * (inputs - commands)
         curvature = np.tan(inputs[..., 1]) / length
-        return _arcs(pose0, inputs[..., 0], curvature, data.dt), inputs[..., 0]
+        return _arcs(pose0, inputs[..., 0], curvature, data.dt, slip), inputs[..., 0]
     if kind == "koopman":
         local = KMPC_STATE.of_array(data.obs[starts])
         local[:, :3] = 0.0  # the pose in the car's own frame
@@ -219,6 +253,7 @@ def evaluate(
     *,
     horizons: Sequence[int] = DEFAULT_HORIZONS,
     estimator: EstimatorConfig | None = None,
+    rkmpc: RKMPCConfig | None = None,
     source: str | None = None,
 ) -> Evaluation:
     """Score every model's open-loop predictions of ``data`` against the kinematic model's.
@@ -235,6 +270,9 @@ def evaluate(
         Steps ahead to score, 1 to :data:`MAX_HORIZON`.
     estimator : EstimatorConfig, optional
         The state estimator's settings, where the data need it.
+    rkmpc : RKMPCConfig, optional
+        The car's ``rkmpc`` settings: the trust range its correction fades out of and, where its
+        slip drift is on, the ``*+drift`` rows (module docstring); default ``RKMPCConfig()``.
     source : str, optional
         Where the data came from, for the record.
 
@@ -247,6 +285,9 @@ def evaluate(
     if not steps or steps[0] < 1 or steps[-1] > MAX_HORIZON:
         raise ParameterError(f"horizons must be integers from 1 to {MAX_HORIZON}, got {list(horizons)}")
     horizon = steps[-1]
+    settings = RKMPCConfig() if rkmpc is None else rkmpc
+    if not isinstance(settings, RKMPCConfig):
+        raise ParameterError(f"evaluate: rkmpc must be an RKMPCConfig, got {type(settings).__name__}")
     kinds = {name: model_kind(model) for name, model in models.items()}
     reference = estimated_for(recipe_of_kind("residual"), data, vehicle, estimator)
     estimated = reference is not data
@@ -265,8 +306,14 @@ def evaluate(
             if estimated and model is not None
             else reference
         )
-        errors = _errors(_predict(kind, model, own, starts, horizon, vehicle), truth_pose, truth_speed)
+        predicted = _predict(kind, model, own, starts, horizon, vehicle, settings)
+        errors = _errors(predicted, truth_pose, truth_speed)
         rows += [evaluation_row(kind, name, h, data.dt, errors, starts.size) for h in steps]
+        if settings.slip_drift and kind in DRIFT_KINDS:
+            slip = _drift(own, starts, settings)
+            predicted = _predict(kind, model, own, starts, horizon, vehicle, settings, slip)
+            errors = _errors(predicted, truth_pose, truth_speed)
+            rows += [evaluation_row(DRIFT_KINDS[kind], name, h, data.dt, errors, starts.size) for h in steps]
     truth = "the state estimator's smoothed estimates" if estimated else "the data as recorded"
     exact = _errors(_exact_inputs(reference, starts, horizon, vehicle.wheelbase), truth_pose, truth_speed)
     return Evaluation(

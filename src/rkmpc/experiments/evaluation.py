@@ -45,18 +45,26 @@ class Evaluation:
     models: dict[str, str]
     exact_inputs: list[EvaluationRow] = field(default_factory=list)
 
-    def row(self, model: str, horizon: int) -> EvaluationRow:
-        """The row of ``model`` (a kind, or a file's name where two files have one kind) at ``horizon``."""
+    def row(self, model: str, horizon: int, *, kind: str | None = None) -> EvaluationRow:
+        """The row of ``model`` (a kind, or a file's name where two files have one kind) at ``horizon``;
+        ``kind`` picks among a file's rows (``residual`` or ``residual+drift``)."""
         found = [
             row
             for row in self.rows
-            if row.horizon_steps == horizon and (row.file == model or (row.model == model))
+            if row.horizon_steps == horizon
+            and (row.file == model or row.model == model)
+            and (kind is None or row.model == kind)
         ]
-        named = [row for row in found if row.file == model]
-        if len(named) == 1:
-            return named[0]
         if len(found) == 1:
             return found[0]
+        by_file = [row for row in found if row.file == model]
+        by_kind = [row for row in found if row.model == model]
+        for named in (by_file, by_kind):
+            if len(named) == 1:
+                return named[0]
+        if len({row.model for row in found}) > 1:
+            kinds = ", ".join(row.model for row in found)
+            raise ParameterError(f"{len(found)} rows of {model!r} ({kinds}): name the kind")
         if found:
             files = ", ".join(str(row.file) for row in found)
             raise ParameterError(f"{len(found)} models of kind {model!r} ({files}): name one by its file")
@@ -83,14 +91,14 @@ class Evaluation:
         """Position and heading error against the horizon, one line per model and the exact inputs."""
         from rkmpc.analysis.prediction_plots import plot_prediction_errors
 
-        labels = {self.label(row): row.file or row.model for row in self.rows}
+        labels = {self.label(row): (row.file or row.model, row.model) for row in self.rows}
         steps = sorted({row.horizon_steps for row in self.rows})
         exact = {row.horizon_steps: row for row in self.exact_inputs}
 
         def series(field: str) -> dict[str, list[float]]:
             out = {
-                label: [float(getattr(self.row(key, h), field)) for h in steps]
-                for label, key in labels.items()
+                label: [float(getattr(self.row(key, h, kind=kind), field)) for h in steps]
+                for label, (key, kind) in labels.items()
             }
             if exact:  # made by evaluate at the same horizons as the models
                 out["exact inputs"] = [float(getattr(exact[h], field)) for h in steps]
