@@ -94,7 +94,8 @@ tracks-table: $(VENV)/.installed
 study-tracks: $(VENV)/.installed
 	$(BIN)/rkmpc study tracks --tracks builtin,../shared/tracks/centerlines --out runs/study-tracks --force
 
-# Every controller on six cars of the zoo (issue 11) over every shared track; long (hours on 2 cores).
+# Every controller on six cars of the zoo (issue 11) over every shared track, through the real F1TENTH
+# car's sensors (the study's default; docs/cars.md); 45-60 minutes on 2 cores with a warm model cache.
 study-cars: $(VENV)/.installed
 	$(BIN)/rkmpc study cars --cars gym,overshoot,cheap-servo,low-grip,heavy-long,light-short \
 		--tracks builtin,../shared/tracks/centerlines --controllers pp,lmpc,lmpc-id,rkmpc --out runs/study-cars --force
