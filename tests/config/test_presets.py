@@ -18,6 +18,7 @@ from rkmpc.config.loader import PRESETS, load_preset
 from rkmpc.config.scaling import carry_over, speed_priced
 from rkmpc.control import make_controller
 from rkmpc.control.learned.lateral_guard import LateralGuardConfig
+from rkmpc.control.learned.oscillation import OscillationConfig
 from rkmpc.control.learned.residual_config import PAPER_RESIDUAL, ResidualMPCConfig, RKMPCConfig
 from rkmpc.control.learned.rkmpc import PaperResidualKoopmanMPC, ResidualKoopmanMPC
 from rkmpc.control.linear.lmpc import LMPCConfig
@@ -106,7 +107,7 @@ def test_the_f1tenth_preset_keeps_the_limits_and_the_controllers_defaults():
     assert limits == F1TENTH_LIMITS
     # The 1:10 car's settings are the controllers' own defaults, but rkmpc's: its preset tunes it
     # (on the built-in track and the oval) with the slip drift, heavier position and heading weights,
-    # the lateral guard and the retimed reference.
+    # the lateral guard, the oscillation damper and the retimed reference.
     assert car.controllers == replace(ControllerSettings(), rkmpc=car.controllers.rkmpc)
     assert car.controllers.lmpc == LMPCConfig()
     assert car.controllers.rkmpc == replace(
@@ -116,6 +117,7 @@ def test_the_f1tenth_preset_keeps_the_limits_and_the_controllers_defaults():
         slip_drift=True,
         slip_velocity_limit=0.5,
         lateral_guard=LateralGuardConfig(enabled=True),
+        oscillation=OscillationConfig(enabled=True),
         retimed=True,
     )
     assert ResidualKoopmanMPC.default_config == RKMPCConfig()

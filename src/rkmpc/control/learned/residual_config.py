@@ -14,6 +14,7 @@ from typing import Any, Self
 
 from rkmpc.control.learned.adaptation import AdaptationConfig
 from rkmpc.control.learned.lateral_guard import LateralGuardConfig
+from rkmpc.control.learned.oscillation import OscillationConfig
 from rkmpc.control.learned.trust import TrustConfig
 from rkmpc.control.tracking import check_weights
 from rkmpc.core.errors import ParameterError
@@ -143,6 +144,9 @@ class RKMPCConfig(ResidualMPCConfig):
     lateral_guard : LateralGuardConfig
         The constraint that keeps the corrected plan's predicted lateral deviations within the
         uncorrected plan's largest (:mod:`rkmpc.control.learned.lateral_guard`); off by default.
+    oscillation : OscillationConfig
+        The damper that raises the steering-rate weight while the correction oscillates
+        (:mod:`rkmpc.control.learned.oscillation`); off by default.
     retimed : bool
         Whether the residual QP predicts along the reference retimed to the learned model's
         predicted speeds, with speed acting along the track only and the position error split
@@ -156,12 +160,15 @@ class RKMPCConfig(ResidualMPCConfig):
     trust: TrustConfig = field(default_factory=TrustConfig)
     adaptation: AdaptationConfig = field(default_factory=AdaptationConfig)
     lateral_guard: LateralGuardConfig = field(default_factory=LateralGuardConfig)
+    oscillation: OscillationConfig = field(default_factory=OscillationConfig)
     retimed: bool = False
 
     def __post_init__(self) -> None:
         super().__post_init__()
         if not isinstance(self.lateral_guard, LateralGuardConfig):
             raise ParameterError("RKMPCConfig.lateral_guard must be a LateralGuardConfig")
+        if not isinstance(self.oscillation, OscillationConfig):
+            raise ParameterError("RKMPCConfig.oscillation must be an OscillationConfig")
         check_weights(self, "lateral_accel_weight")
         for name in ("slip_drift", "retimed"):
             if not isinstance(getattr(self, name), bool):
