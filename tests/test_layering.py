@@ -182,6 +182,56 @@ def test_heavy_and_optional_packages_stay_in_their_rooms(package_graph):
     assert confinement(package_graph) == []
 
 
+#: The longest a module may be (lines), so one module stays one idea.
+MAX_MODULE_LINES = 400
+
+
+def long_modules(root: Path) -> list[str]:
+    """Modules below ``root`` over :data:`MAX_MODULE_LINES` lines, with their length."""
+    found = []
+    for path in sorted(root.rglob("*.py")):
+        lines = len(path.read_text().splitlines())
+        if lines > MAX_MODULE_LINES:
+            found.append(f"{path.relative_to(root)}: {lines} lines")
+    return found
+
+
+def pickle_uses(root: Path) -> list[str]:
+    """Imports of ``pickle`` (or its relatives) below ``root``: nothing the package reads may run code."""
+    found = []
+    for path in sorted(root.rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text())):
+            names = []
+            if isinstance(node, ast.Import):
+                names = [alias.name for alias in node.names]
+            elif isinstance(node, ast.ImportFrom) and node.module:
+                names = [node.module]
+            found += [
+                f"{path.relative_to(root)}:{node.lineno} imports {n}"
+                for n in names
+                if n.split(".")[0] in {"pickle", "cPickle", "dill", "cloudpickle", "shelve"}
+            ]
+    return found
+
+
+def test_no_module_over_400_lines():
+    assert long_modules(PACKAGE) == []
+
+
+def test_no_pickle_in_the_package():
+    assert pickle_uses(PACKAGE) == []
+
+
+def test_the_size_and_pickle_checks_catch_a_long_module_and_a_pickle(tmp_path):
+    root = tmp_path / "rkmpc"
+    root.mkdir()
+    (root / "long.py").write_text("x = 1\n" * (MAX_MODULE_LINES + 1))
+    (root / "short.py").write_text("x = 1\n" * MAX_MODULE_LINES)
+    (root / "unsafe.py").write_text("def load(f):\n    import pickle\n    return pickle.load(f)\n")
+    assert long_modules(root) == [f"long.py: {MAX_MODULE_LINES + 1} lines"]
+    assert pickle_uses(root) == ["unsafe.py:2 imports pickle"]
+
+
 def _fake_package(tmp_path: Path, files: dict[str, str]) -> Path:
     root = tmp_path / "rkmpc"
     for name, text in files.items():

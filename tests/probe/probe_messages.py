@@ -200,7 +200,7 @@ def readme_model_loading(_: Probe) -> Evidence:
     assert "load_model(" in text and 'make_controller("rkmpc", sc.reference, sc.vehicle, model=' in text
     sc = scenario()
     evidence = raises(lambda: make_controller("rkmpc", sc.reference, sc.vehicle), "needs model=")
-    assert "_ResidualBase" not in evidence.message
+    assert "ResidualMPCBase" not in evidence.message
     return evidence
 
 

@@ -155,7 +155,7 @@ def _drift(data: TransitionDataset, starts: np.ndarray, settings: RKMPCConfig) -
     return slip * np.asarray(weight, dtype=float)
 
 
-def _predict(
+def _arc_inputs(
     kind: str,
     model: object,
     data: TransitionDataset,
@@ -163,63 +163,65 @@ def _predict(
     horizon: int,
     vehicle: VehicleParams,
     settings: RKMPCConfig,
-    slip: np.ndarray | None = None,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Predicted poses (M, H, 3) and speeds (M, H) after each step, from each start's state.
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """Speeds (m/s) and curvatures (1/m), each (M, H), of the arcs a kinematic, identified or
+    residual model drives from each start; None for a model that predicts poses itself (koopman).
 
-    ``settings``: ``rkmpc``'s (the trust range of its correction); ``slip``: the drift's angles
-    (:func:`_drift`), for the kinematic and residual models only.
+    ``settings``: ``rkmpc``'s (the trust range of its correction).
     """
     commands = _window(data.command, starts, horizon)
-    pose0 = data.obs[starts][:, [_X, _Y, _YAW]]
     length = vehicle.wheelbase
     if kind == "kinematic":
-        curvature = np.tan(commands[..., 1]) / length
-        return _arcs(pose0, commands[..., 0], curvature, data.dt, slip), commands[..., 0]
+        return commands[..., 0], np.tan(commands[..., 1]) / length
     if kind == "identified" and isinstance(model, IdentifiedModel):
         wheel = _window(wheel_from_commands(model, data, vehicle), starts, horizon)
         speed = commands[..., 0]
-        curvature = np.tan(wheel) / (length + model.understeer_gradient * speed**2)
-        return _arcs(pose0, speed, curvature, data.dt), speed
-    if not isinstance(model, KoopmanModel):
-        raise ParameterError(f"cannot predict with a {kind!r} model")
+        return speed, np.tan(wheel) / (length + model.understeer_gradient * speed**2)
+    if kind == "koopman" and isinstance(model, KoopmanModel):
+        return None
+    if kind != "residual" or not isinstance(model, KoopmanModel):
+        raise ParameterError(
+            f"a {kind!r} model cannot be evaluated on recorded driving"
+            + (
+                ": it predicts what a correction dU on the LMPC's plan does, which a recording does not hold"
+                if kind == "paper"
+                else ""
+            )
+        )
     previous = previous_commands(data.command, data.episode)[starts]
-    if kind == "residual":
-        features = RESIDUAL_STATE.of_array(data.obs[starts], previous)
-        z = model.lift(features)
-        inputs = np.empty_like(commands)
-        for k in range(horizon):
-            inputs[:, k] = model.output(z, commands[:, k])
-            z = model.step(z, commands[:, k])
-        # As rkmpc drives with it: the correction fades toward the command where the features
-        # leave the model's training range (rkmpc.control.learned.trust).
-        trust = CorrectionTrust(model.A_, model.B_, model.Cx_, model.x_min_, model.x_max_, settings.trust)
-        weight = trust.range_trust(features)[:, None, None]
-        inputs = commands + weight * (inputs - commands)
-        curvature = np.tan(inputs[..., 1]) / length
-        return _arcs(pose0, inputs[..., 0], curvature, data.dt, slip), inputs[..., 0]
-    if kind == "koopman":
-        local = KMPC_STATE.of_array(data.obs[starts])
-        local[:, :3] = 0.0  # the pose in the car's own frame
-        states = np.stack([model.predict_states(x0, u)[1:] for x0, u in zip(local, commands, strict=True)])
-        c, s = np.cos(pose0[:, 2])[:, None], np.sin(pose0[:, 2])[:, None]
-        poses = np.stack(
-            [
-                pose0[:, :1] + c * states[..., 0] - s * states[..., 1],
-                pose0[:, 1:2] + s * states[..., 0] + c * states[..., 1],
-                pose0[:, 2:3] + states[..., 2],
-            ],
-            axis=-1,
-        )
-        return poses, states[..., 3]
-    raise ParameterError(
-        f"a {kind!r} model cannot be evaluated on recorded driving"
-        + (
-            ": it predicts what a correction dU on the LMPC's plan does, which a recording does not hold"
-            if kind == "paper"
-            else ""
-        )
+    features = RESIDUAL_STATE.of_array(data.obs[starts], previous)
+    z = model.lift(features)
+    inputs = np.empty_like(commands)
+    for k in range(horizon):
+        inputs[:, k] = model.output(z, commands[:, k])
+        z = model.step(z, commands[:, k])
+    # As rkmpc drives with it: the correction fades toward the command where the features leave
+    # the model's training range (rkmpc.control.learned.trust).
+    trust = CorrectionTrust(model.A_, model.B_, model.Cx_, model.x_min_, model.x_max_, settings.trust)
+    weight = trust.range_trust(features)[:, None, None]
+    inputs = commands + weight * (inputs - commands)
+    return inputs[..., 0], np.tan(inputs[..., 1]) / length
+
+
+def _koopman_poses(
+    model: KoopmanModel, data: TransitionDataset, starts: np.ndarray, horizon: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """Poses (M, H, 3) and speeds (M, H) a ``kmpc`` model predicts from each start."""
+    commands = _window(data.command, starts, horizon)
+    pose0 = data.obs[starts][:, [_X, _Y, _YAW]]
+    local = KMPC_STATE.of_array(data.obs[starts])
+    local[:, :3] = 0.0  # the pose in the car's own frame
+    states = np.stack([model.predict_states(x0, u)[1:] for x0, u in zip(local, commands, strict=True)])
+    c, s = np.cos(pose0[:, 2])[:, None], np.sin(pose0[:, 2])[:, None]
+    poses = np.stack(
+        [
+            pose0[:, :1] + c * states[..., 0] - s * states[..., 1],
+            pose0[:, 1:2] + s * states[..., 0] + c * states[..., 1],
+            pose0[:, 2:3] + states[..., 2],
+        ],
+        axis=-1,
     )
+    return poses, states[..., 3]
 
 
 def _exact_inputs(
@@ -306,12 +308,17 @@ def evaluate(
             if estimated and model is not None
             else reference
         )
-        predicted = _predict(kind, model, own, starts, horizon, vehicle, settings)
+        arcs = _arc_inputs(kind, model, own, starts, horizon, vehicle, settings)
+        pose0 = own.obs[starts][:, [_X, _Y, _YAW]]
+        if arcs is None:
+            predicted = _koopman_poses(model, own, starts, horizon)  # type: ignore[arg-type]
+        else:
+            predicted = _arcs(pose0, *arcs, own.dt), arcs[0]
         errors = _errors(predicted, truth_pose, truth_speed)
         rows += [evaluation_row(kind, name, h, data.dt, errors, starts.size) for h in steps]
-        if settings.slip_drift and kind in DRIFT_KINDS:
-            slip = _drift(own, starts, settings)
-            predicted = _predict(kind, model, own, starts, horizon, vehicle, settings, slip)
+        if settings.slip_drift and kind in DRIFT_KINDS and arcs is not None:
+            # The same arcs, each start's travelling at its drift's angle to the heading.
+            predicted = _arcs(pose0, *arcs, own.dt, _drift(own, starts, settings)), arcs[0]
             errors = _errors(predicted, truth_pose, truth_speed)
             rows += [evaluation_row(DRIFT_KINDS[kind], name, h, data.dt, errors, starts.size) for h in steps]
     truth = "the state estimator's smoothed estimates" if estimated else "the data as recorded"
