@@ -17,7 +17,10 @@ MAX_RATE, DT = 3.2, 0.05
 
 
 def _damper(**changes: object) -> OscillationDamper:
-    config = replace(OscillationConfig(enabled=True, window_steps=10, hold_steps=5), **changes)
+    config = replace(
+        OscillationConfig(enabled=True, window_steps=10, rate_ratio=4.0, rate_floor=0.1, hold_steps=5),
+        **changes,
+    )
     return OscillationDamper(config, MAX_RATE, DT)
 
 

@@ -62,8 +62,8 @@ class OscillationConfig:
 
     enabled: bool = False
     window_steps: int = 20
-    rate_ratio: float = 4.0
-    rate_floor: float = 0.1
+    rate_ratio: float = 2.0
+    rate_floor: float = 0.2
     damping_weight: float = 100.0
     hold_steps: int = 0
 
