@@ -18,7 +18,9 @@ MAX_RATE, DT = 3.2, 0.05
 
 def _damper(**changes: object) -> OscillationDamper:
     config = replace(
-        OscillationConfig(enabled=True, window_steps=10, rate_ratio=4.0, rate_floor=0.1, hold_steps=5),
+        OscillationConfig(
+            enabled=True, window_steps=10, rate_ratio=4.0, rate_floor=0.1, persist_steps=1, hold_steps=5
+        ),
         **changes,
     )
     return OscillationDamper(config, MAX_RATE, DT)
@@ -31,6 +33,7 @@ def _damper(**changes: object) -> OscillationDamper:
         {"window_steps": 1},
         {"window_steps": 2.5},
         {"hold_steps": -1},
+        {"persist_steps": 0},
         {"rate_ratio": 0.0},
         {"rate_floor": 0.0},
         {"rate_floor": 1.5},
@@ -62,6 +65,17 @@ def test_a_correction_that_swings_while_the_baseline_holds_is_damped_then_releas
     assert (damper.steps, damper.onsets, damper.weight) == (0, 0, 0.0)
 
 
+def test_a_burst_shorter_than_persist_steps_is_left_alone_a_longer_one_is_damped():
+    damper = _damper(window_steps=4, persist_steps=8)
+    swing = [0.02 * (-1) ** k for k in range(9)]  # the window is full after 5 observations
+    for c in swing + [swing[-1]] * 30:  # above the floor on 5 steps and 2 more as it empties
+        damper.observe(0.1, c)
+    assert damper.onsets == 0
+    for k in range(12):  # above it on 10 steps in a row
+        damper.observe(0.1, 0.02 * (-1) ** k)
+    assert damper.onsets == 1 and damper.weight > 0.0
+
+
 def test_a_correction_that_moves_with_a_moving_baseline_is_left_alone():
     damper = _damper()
     for k in range(50):  # the LMPC's command swings by 0.1 rad a step, the correction by 0.04
@@ -77,7 +91,7 @@ def test_small_swings_under_the_floor_are_left_alone():
 
 
 def test_by_default_once_it_rang_it_damps_until_reset():
-    damper = OscillationDamper(OscillationConfig(enabled=True, window_steps=4), MAX_RATE, DT)
+    damper = OscillationDamper(OscillationConfig(enabled=True, window_steps=4, persist_steps=2), MAX_RATE, DT)
     for k in range(6):
         damper.observe(0.0, 0.05 * (-1) ** k)
     for _ in range(5000):  # calm for 250 s
@@ -102,7 +116,7 @@ def _model() -> SimpleNamespace:
 
 
 def _first_correction(sc, swinging: bool) -> tuple[float, ResidualKoopmanMPC]:
-    damper = OscillationConfig(enabled=True, window_steps=4, damping_weight=50.0)
+    damper = OscillationConfig(enabled=True, window_steps=4, persist_steps=1, damping_weight=50.0)
     config = replace(RKMPCConfig(), oscillation=damper)
     ctrl = ResidualKoopmanMPC(sc.reference, sc.vehicle, _model(), config=config)
     for k in range(6):

@@ -14,7 +14,9 @@ LMPC's own steering command, ``r_b = mean |U_k - U_{k-1}|``. The correction osci
 ``r_c > max(rate_ratio * r_b, rate_floor * max_rate * dt)``
 
 (it moves faster than the baseline it corrects, and faster than a share of the servo's rate
-limit, which a quantised servo's chatter stays under). From the next step on, the residual QP
+limit, which a quantised servo's chatter stays under) on ``persist_steps`` steps in a row: a ring
+keeps swinging for many seconds, while a correction that answers a localiser's jump or a corner's
+entry moves as fast for a second or two at most. From the next step on, the residual QP
 weighs the change of the steering correction from step to step with ``damping_weight`` more (the
 term of ``ResidualMPCConfig.steer_rate_weight``): by default for the rest of the run, since a loop
 that rang once rings again (released 5 s after it stopped, the ring came back 27 times in a lap;
@@ -55,6 +57,8 @@ class OscillationConfig:
         never taken for an oscillation.
     damping_weight : float
         Steering-rate weight (>= 0, the unit of ``steer_rate_weight``) added while damping.
+    persist_steps : int
+        Consecutive steps (>= 1) the correction must oscillate before the damping switches on.
     hold_steps : int
         Steps (>= 0) damped after each step that found an oscillation; 0: until the controller
         is reset (the rest of the run).
@@ -65,12 +69,13 @@ class OscillationConfig:
     rate_ratio: float = 2.0
     rate_floor: float = 0.2
     damping_weight: float = 100.0
+    persist_steps: int = 100
     hold_steps: int = 0
 
     def __post_init__(self) -> None:
         if not isinstance(self.enabled, bool):
             raise ParameterError(f"OscillationConfig.enabled must be true or false, got {self.enabled!r}")
-        for name, low in (("window_steps", 2), ("hold_steps", 0)):
+        for name, low in (("window_steps", 2), ("persist_steps", 1), ("hold_steps", 0)):
             value = getattr(self, name)
             if not is_integer(value, low):
                 raise ParameterError(f"OscillationConfig.{name} must be an integer >= {low}, got {value!r}")
@@ -106,6 +111,7 @@ class OscillationDamper:
         self._next = 0
         self._last: tuple[float, float] | None = None
         self._hold = 0
+        self._run = 0
         #: Steps on which the residual QP was damped.
         self.steps = 0
         #: Times the damping switched on (from off).
@@ -131,7 +137,8 @@ class OscillationDamper:
         if self._filled < len(self._changes):
             return
         moved, base = self._changes.mean(axis=0)
-        if moved > max(self.config.rate_ratio * base, self._floor):
+        self._run = self._run + 1 if moved > max(self.config.rate_ratio * base, self._floor) else 0
+        if self._run >= self.config.persist_steps:
             if self._hold == 0:
                 self.onsets += 1
             self._hold = self.config.hold_steps or _FOREVER
