@@ -15,8 +15,9 @@ LMPC's own steering command, ``r_b = mean |U_k - U_{k-1}|``. The correction osci
 
 (it moves faster than the baseline it corrects, and faster than a share of the servo's rate
 limit, which a quantised servo's chatter stays under) on ``persist_steps`` steps in a row: a ring
-keeps swinging for many seconds, while a correction that answers a localiser's jump or a corner's
-entry moves as fast for a second or two at most. From the next step on, the residual QP
+keeps swinging for many seconds, while the bursts measured on healthy runs (a ring that dies by
+itself, the correction through a late and jumpy localiser) lasted under three. From the next step
+on, the residual QP
 weighs the change of the steering correction from step to step with ``damping_weight`` more (the
 term of ``ResidualMPCConfig.steer_rate_weight``): by default for the rest of the run, since a loop
 that rang once rings again (released 5 s after it stopped, the ring came back 27 times in a lap;
