@@ -44,6 +44,14 @@ def is_positive_number(value: Any, upper: float = math.inf) -> bool:
     return math.isfinite(f) and 0.0 < f <= upper
 
 
+def require_bool(obj: object, *names: str) -> None:
+    """Raise :class:`ParameterError` unless each named attribute is ``True`` or ``False``."""
+    for name in names:
+        value = getattr(obj, name)
+        if not isinstance(value, bool):
+            raise ParameterError(f"{type(obj).__name__}.{name} must be true or false, got {value!r}")
+
+
 def require_nonnegative(obj: object, *names: str) -> None:
     """Raise :class:`ParameterError` unless each named attribute is finite and >= 0."""
     for name in names:

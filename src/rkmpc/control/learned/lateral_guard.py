@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from rkmpc.core.errors import ParameterError
+from rkmpc.core.validation import require_bool
 
 __all__ = ["LateralGuard", "LateralGuardConfig"]
 
@@ -43,8 +44,7 @@ class LateralGuardConfig:
     margin_wheelbases: float = 0.02
 
     def __post_init__(self) -> None:
-        if not isinstance(self.enabled, bool):
-            raise ParameterError(f"LateralGuardConfig.enabled must be true or false, got {self.enabled!r}")
+        require_bool(self, "enabled")
         m = self.margin_wheelbases
         if not (isinstance(m, int | float) and not isinstance(m, bool) and np.isfinite(m) and m >= 0.0):
             raise ParameterError(f"LateralGuardConfig.margin_wheelbases must be finite and >= 0, got {m!r}")

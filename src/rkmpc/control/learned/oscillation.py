@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from rkmpc.core.errors import ParameterError
-from rkmpc.core.validation import is_integer, require_nonnegative, require_positive
+from rkmpc.core.validation import is_integer, require_bool, require_nonnegative, require_positive
 
 __all__ = ["OscillationConfig", "OscillationDamper"]
 
@@ -74,8 +74,7 @@ class OscillationConfig:
     hold_steps: int = 0
 
     def __post_init__(self) -> None:
-        if not isinstance(self.enabled, bool):
-            raise ParameterError(f"OscillationConfig.enabled must be true or false, got {self.enabled!r}")
+        require_bool(self, "enabled")
         for name, low in (("window_steps", 2), ("persist_steps", 1), ("hold_steps", 0)):
             value = getattr(self, name)
             if not is_integer(value, low):

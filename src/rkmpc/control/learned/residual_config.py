@@ -18,7 +18,7 @@ from rkmpc.control.learned.oscillation import OscillationConfig
 from rkmpc.control.learned.trust import TrustConfig
 from rkmpc.control.tracking import check_weights
 from rkmpc.core.errors import ParameterError
-from rkmpc.core.validation import is_positive_number, require_positive_value
+from rkmpc.core.validation import is_positive_number, require_bool, require_positive_value
 
 __all__ = ["PAPER_RESIDUAL", "RKMPCConfig", "ResidualMPCConfig"]
 
@@ -170,9 +170,7 @@ class RKMPCConfig(ResidualMPCConfig):
         if not isinstance(self.oscillation, OscillationConfig):
             raise ParameterError("RKMPCConfig.oscillation must be an OscillationConfig")
         check_weights(self, "lateral_accel_weight")
-        for name in ("slip_drift", "retimed"):
-            if not isinstance(getattr(self, name), bool):
-                raise ParameterError(f"RKMPCConfig.{name} must be True or False, got {getattr(self, name)!r}")
+        require_bool(self, "slip_drift", "retimed")
         limit = self.slip_velocity_limit
         if not (limit == math.inf or is_positive_number(limit)):
             raise ParameterError(

@@ -21,7 +21,7 @@ import numpy as np
 from rkmpc.core.errors import ParameterError
 from rkmpc.core.jsonutil import to_json_ready
 from rkmpc.core.observation import Command, Observation
-from rkmpc.core.validation import is_integer
+from rkmpc.core.validation import is_integer, require_bool
 from rkmpc.vehicle.plants.base import Plant
 from rkmpc.vehicle.sensors.components import Localiser, WheelSpeedSensor, YawRateSensor
 from rkmpc.vehicle.sensors.localiser import TIME_EPS, LocaliserRun
@@ -86,10 +86,7 @@ class SensorProfile:
                 raise ParameterError(
                     f"SensorProfile.{name} must be a {kind.__name__} or None, got {type(value).__name__}"
                 )
-        for name in _FLAGS:
-            value = getattr(self, name)
-            if not isinstance(value, bool):
-                raise ParameterError(f"SensorProfile.{name} must be true or false, got {value!r}")
+        require_bool(self, *_FLAGS)
 
     @property
     def is_ideal(self) -> bool:
