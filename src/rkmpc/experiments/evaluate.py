@@ -163,9 +163,9 @@ def _arc_inputs(
     horizon: int,
     vehicle: VehicleParams,
     settings: RKMPCConfig,
-) -> tuple[np.ndarray, np.ndarray] | None:
+) -> tuple[np.ndarray, np.ndarray]:
     """Speeds (m/s) and curvatures (1/m), each (M, H), of the arcs a kinematic, identified or
-    residual model drives from each start; None for a model that predicts poses itself (koopman).
+    residual model drives from each start.
 
     ``settings``: ``rkmpc``'s (the trust range of its correction).
     """
@@ -177,8 +177,6 @@ def _arc_inputs(
         wheel = _window(wheel_from_commands(model, data, vehicle), starts, horizon)
         speed = commands[..., 0]
         return speed, np.tan(wheel) / (length + model.understeer_gradient * speed**2)
-    if kind == "koopman" and isinstance(model, KoopmanModel):
-        return None
     if kind != "residual" or not isinstance(model, KoopmanModel):
         raise ParameterError(
             f"a {kind!r} model cannot be evaluated on recorded driving"
@@ -308,11 +306,12 @@ def evaluate(
             if estimated and model is not None
             else reference
         )
-        arcs = _arc_inputs(kind, model, own, starts, horizon, vehicle, settings)
+        arcs = None
         pose0 = own.obs[starts][:, [_X, _Y, _YAW]]
-        if arcs is None:
-            predicted = _koopman_poses(model, own, starts, horizon)  # type: ignore[arg-type]
+        if kind == "koopman" and isinstance(model, KoopmanModel):  # it predicts poses itself
+            predicted = _koopman_poses(model, own, starts, horizon)
         else:
+            arcs = _arc_inputs(kind, model, own, starts, horizon, vehicle, settings)
             predicted = _arcs(pose0, *arcs, own.dt), arcs[0]
         errors = _errors(predicted, truth_pose, truth_speed)
         rows += [evaluation_row(kind, name, h, data.dt, errors, starts.size) for h in steps]

@@ -93,6 +93,8 @@ class ResidualMPCBase(Controller):
         self.lateral = LateralGuard(n, vehicle.wheelbase, self._lateral_config())
         #: The damper of the correction's limit cycle (``rkmpc`` only; off for the paper's).
         self.oscillation = OscillationDamper(self._oscillation_config(), vehicle.steering.max_rate, self.dt)
+        # What the damping adds to the residual QP's Hessian (``2 w D'D``), once.
+        self._damping_hessian = (2.0 * self.oscillation.config.damping_weight) * self._rate_gram
         # The Hessian the residual QP holds (a fixed one need not be passed again).
         self._qp_hessian: np.ndarray | None = None
         self._precompute()
@@ -181,7 +183,7 @@ class ResidualMPCBase(Controller):
         np.minimum(lb, ub, out=lb)
         damping = self.oscillation.weight
         if damping > 0.0:  # the correction oscillates: its changes weigh more
-            H = H + (2.0 * damping) * self._rate_gram
+            H = H + self._damping_hessian
         rate_weight = self.config.steer_rate_weight + damping
         if rate_weight > 0.0:
             # The first correction's change from the one applied last: w (d_0 - d_last)^2 adds
