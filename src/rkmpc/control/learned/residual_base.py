@@ -1,7 +1,10 @@
 """The residual MPCs' common part: the LMPC's baseline, a residual QP on top, the guarded sum.
 
 :class:`ResidualMPCBase` runs the LMPC of :mod:`rkmpc.control.linear.lmpc` for the baseline
-``U_lmpc``, asks its subclass for the residual QP of the correction ``dU``
+``U_lmpc`` (or another :class:`~rkmpc.control.linear.lmpc.LinearMPC` given as ``baseline``, whose
+plan it corrects through the kinematic prediction the baseline hands it,
+:meth:`~rkmpc.control.linear.lmpc.LinearMPC.kinematic_prediction`), asks its subclass for the
+residual QP of the correction ``dU``
 (:mod:`rkmpc.control.learned.rkmpc`), solves it with the given backend, and sends
 ``U_lmpc + dU`` clipped to the car's limits and the LMPC's speed floor. A residual QP that fails,
 or features that are not finite, send the LMPC's command alone, with the reason as the step's
@@ -55,6 +58,7 @@ class ResidualMPCBase(Controller):
         model: LiftedModel,
         config: ResidualMPCConfig | None = None,
         lmpc_config: LMPCConfig | None = None,
+        baseline: LinearMPC | None = None,
     ) -> None:
         super().__init__(reference, vehicle.wheelbase)
         self.reference = reference
@@ -63,7 +67,13 @@ class ResidualMPCBase(Controller):
         self.config = config if config is not None else self.default_config
         self._check_config(self.config)
         self.state: FeatureMap = recipe_state(self.name)
-        self.lmpc = LinearMPC(reference, vehicle, lmpc_config)
+        if baseline is not None and (lmpc_config is not None or baseline.reference is not reference):
+            raise ParameterError(
+                f"{self.name}: a baseline brings its own settings and must track the same reference; "
+                "give either baseline or lmpc_config"
+            )
+        #: The baseline MPC whose plan the residual QP corrects (the nominal LMPC unless given).
+        self.lmpc = baseline if baseline is not None else LinearMPC(reference, vehicle, lmpc_config)
         self.dt = self.lmpc.config.dt
         n = self.lmpc.config.horizon
         self.horizon = n
@@ -160,7 +170,7 @@ class ResidualMPCBase(Controller):
 
     def _step(self, observation: Observation) -> tuple[Command, str, str]:
         base = self.lmpc.step(observation)
-        pred = self.lmpc.last_prediction
+        pred = self.lmpc.kinematic_prediction()
         if self.lmpc.info.status != "ok" or pred is None:
             return (
                 self._apply(np.array([base.speed, base.steer]), np.zeros(2)),
@@ -214,6 +224,7 @@ class ResidualMPCBase(Controller):
         u = self._guard.apply(base + correction, self.lmpc.reference_speed)
         self.last_correction = u - base
         self.oscillation.observe(float(base[1]), float(self.last_correction[1]))
+        self.lmpc.residual_applied(u)
         self._applied(u)
         return Command(speed=float(u[0]), steer=float(u[1]))
 

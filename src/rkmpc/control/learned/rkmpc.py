@@ -57,6 +57,10 @@ class ResidualKoopmanMPC(ResidualMPCBase):
         Residual MPC weights and bounds.
     lmpc_config : LMPCConfig, optional
         The baseline LMPC's settings (its defaults otherwise).
+    baseline : LinearMPC, optional
+        Another baseline whose plan the residual corrects, on the same reference (e.g. ``lmpc-id``'s
+        :class:`~rkmpc.control.linear.lmpc_id.IdentifiedLMPC`); the nominal LMPC when None.
+        ``benchmarks/residual_baseline.py`` measures it: no better than the nominal one (docs/method.md).
     """
 
     name = "rkmpc"

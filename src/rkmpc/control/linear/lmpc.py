@@ -120,6 +120,24 @@ class LinearMPC(TrackingController):
             return Solution(plan, "")
         return Solution(None, f"QP failed: {result.status}", result.reason)
 
+    def kinematic_prediction(self) -> Prediction | None:
+        """The last step's plan with the kinematic model's prediction (for a residual MPC on top).
+
+        A residual MPC (:mod:`rkmpc.control.learned.residual_base`) corrects the plan through the
+        kinematic model's input channel, so it needs the pose deviations predicted by the kinematic
+        model along the reference. Here that is the LMPC's own prediction; a baseline with a richer
+        model (:class:`~rkmpc.control.linear.lmpc_id.IdentifiedLMPC`) returns its plan with the
+        kinematic rows. None before the first step.
+        """
+        return self.last_prediction
+
+    def residual_applied(self, command: np.ndarray) -> None:
+        """A residual MPC on top sent ``command`` (``[speed, steer]``) after this step's plan.
+
+        The nominal LMPC keeps planning from its own last command, as ``rkmpc`` was tuned with; a
+        baseline whose model runs the servo from the commands sent overrides this.
+        """
+
     def _prediction(
         self, observation: Observation, ref: ReferenceHorizon, u_ref: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -51,7 +51,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from rkmpc.control.linear.lmpc import LinearMPC, LMPCConfig
-from rkmpc.control.linear.problem import condense
+from rkmpc.control.linear.problem import Prediction, condense
 from rkmpc.core.angles import wrap_scalar
 from rkmpc.core.observation import Observation
 from rkmpc.estimation.steering import SteeringModel, WheelAnglePropagator
@@ -128,6 +128,26 @@ class IdentifiedLMPC(LinearMPC):
         Phi = Phi.reshape(n, nx, nx)[:, :3].reshape(3 * n, nx)
         Gamma = np.ascontiguousarray(Gamma.reshape(n, nx, 2 * n)[:, :3].reshape(3 * n, 2 * n))
         return xi0, Phi, Gamma
+
+    def kinematic_prediction(self) -> Prediction | None:
+        """The last plan with the plain kinematic model's pose prediction along the reference.
+
+        The pose deviation and the kinematic ``Phi, Gamma`` linearised at the reference inputs
+        ``[v_r, delta_r]``, as the nominal LMPC predicts (no servo, no understeer): the input
+        channel a residual model's ``U_p`` lives in.
+        """
+        last = self.last_prediction
+        if last is None:
+            return None
+        n = self.config.horizon
+        ref = last.reference
+        u_ref = np.column_stack([ref.v[:n], ref.delta[:n]])
+        Phi, Gamma = self.problem.prediction_matrices(ref.theta[:n], u_ref[:, 0], u_ref[:, 1])
+        return replace(last, xi0=last.xi0[:3].copy(), Phi=Phi, Gamma=Gamma, u_ref=u_ref)
+
+    def residual_applied(self, command: np.ndarray) -> None:
+        # The wheel state runs from the commands the car was sent, the correction included.
+        self._guard.previous = np.array(command, dtype=float).reshape(2)
 
     def _model(
         self, observation: Observation, ref: ReferenceHorizon, u_ref: np.ndarray
