@@ -196,7 +196,7 @@ class PaperResidualKoopmanMPC(ResidualMPCBase):
 
     Parameters
     ----------
-    reference, vehicle, config, lmpc_config
+    reference, vehicle, config, lmpc_config, baseline
         As :class:`ResidualKoopmanMPC`.
     model : LiftedModel
         Lifted linear model with state ``[x, y, theta]`` (m, m, rad) in the local frame and
