@@ -78,6 +78,25 @@ def _build_rhs(p: VehicleParams) -> _Rhs:
     return rhs
 
 
+def _stage(
+    rhs: _Rhs,
+    c: float,
+    k: _Derivative,
+    yaw: float,
+    v: float,
+    beta: float,
+    r: float,
+    delta: float,
+    v_cmd: float,
+    d_cmd: float,
+    mu: float,
+) -> _Derivative:
+    """An RK4 stage: ``rhs`` at the state moved ``c`` (s) along the derivative ``k``."""
+    return rhs(
+        yaw + c * k[2], v + c * k[3], beta + c * k[4], r + c * k[5], delta + c * k[6], v_cmd, d_cmd, mu
+    )
+
+
 class DynamicPlant(SingleTrackPlant):
     """Blended kinematic/dynamic single-track car with Pacejka tyres and actuators.
 
@@ -123,36 +142,9 @@ class DynamicPlant(SingleTrackPlant):
             mu = mu0 if self.friction is None else mu0 * self.friction(t, x, y)
             hh = 0.5 * h
             k1 = rhs(yaw, v, beta, r, delta, v_cmd, d_cmd, mu)
-            k2 = rhs(
-                yaw + hh * k1[2],
-                v + hh * k1[3],
-                beta + hh * k1[4],
-                r + hh * k1[5],
-                delta + hh * k1[6],
-                v_cmd,
-                d_cmd,
-                mu,
-            )
-            k3 = rhs(
-                yaw + hh * k2[2],
-                v + hh * k2[3],
-                beta + hh * k2[4],
-                r + hh * k2[5],
-                delta + hh * k2[6],
-                v_cmd,
-                d_cmd,
-                mu,
-            )
-            k4 = rhs(
-                yaw + h * k3[2],
-                v + h * k3[3],
-                beta + h * k3[4],
-                r + h * k3[5],
-                delta + h * k3[6],
-                v_cmd,
-                d_cmd,
-                mu,
-            )
+            k2 = _stage(rhs, hh, k1, yaw, v, beta, r, delta, v_cmd, d_cmd, mu)
+            k3 = _stage(rhs, hh, k2, yaw, v, beta, r, delta, v_cmd, d_cmd, mu)
+            k4 = _stage(rhs, h, k3, yaw, v, beta, r, delta, v_cmd, d_cmd, mu)
             h6 = h / 6.0
             x += h6 * (k1[0] + 2.0 * (k2[0] + k3[0]) + k4[0])
             y += h6 * (k1[1] + 2.0 * (k2[1] + k3[1]) + k4[1])
