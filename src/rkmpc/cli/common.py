@@ -208,7 +208,7 @@ def add_ladder_args(parser: argparse.ArgumentParser) -> None:
         "--steps",
         type=at_least(0),
         default=None,
-        help="steps above the first pace, at most 59 (default: 20 for f1tenth, 16 for fullsize)",
+        help="steps above the first pace, at most 59 (default: 40 for f1tenth, 16 for fullsize)",
     )
 
 

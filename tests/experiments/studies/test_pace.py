@@ -46,9 +46,9 @@ def learn_pace(cfg: LearnPaceConfig):
 def test_default_ladder_climbs_from_the_preset_pace_to_the_cars_top_speed():
     ladder = pace_ladder("f1tenth")
     assert ladder[0] == (4.0, 3.5) and ladder[1] == (4.5, 4.0)
-    # 20 steps of 0.5 m/s^2: on beyond the tyres' grip, the 1:10 car topping out at 8 m/s.
-    assert ladder[-2:] == ((13.5, 8.0), (14.0, 8.0))
-    assert len(ladder) == 21
+    # 40 steps of 0.5 m/s^2: on beyond the tyres' grip, the 1:10 car topping out at 8 m/s.
+    assert ladder[-2:] == ((23.5, 8.0), (24.0, 8.0))
+    assert len(ladder) == 41
     assert pace_ladder("f1tenth", start=(5.0, 4.0), step=(1.0, 0.0), steps=2) == ((5, 4), (6, 4), (7, 4))
     assert pace_ladder("fullsize")[0] == (5.0, 25.0)
 

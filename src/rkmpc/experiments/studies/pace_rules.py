@@ -51,9 +51,11 @@ MAX_FALLBACK_SHARE = 0.02
 #: top speed is capped at the car's (8 m/s for the 1:10 car). The ladder goes on beyond the tyres'
 #: grip (about 11 m/s^2 for the 1:10 car, 10 for the full-size one), so that every controller,
 #: the best one included, stops on it: the f1tenth ladder runs (4, 3.5), (4.5, 4), ..., (8.5, 8),
-#: (9, 8), ..., (14, 8). A climb ends at its first unclean pace, so the rungs above cost nothing.
+#: (9, 8), ..., (24, 8) (``nmpc-dynamic``, given the true tyres, stops at 16.5/8 on the built-in
+#: track, where the ladder of 20 steps ended at 14/8 under it). A climb ends at its first unclean
+#: pace, so the rungs above cost nothing.
 DEFAULT_LADDERS: dict[str, tuple[Pace, Pace, int]] = {
-    "f1tenth": ((4.0, 3.5), (0.5, 0.5), 20),
+    "f1tenth": ((4.0, 3.5), (0.5, 0.5), 40),
     "fullsize": ((5.0, 25.0), (0.5, 2.5), 16),
 }
 #: Most paces a ladder may hold: a ladder is a list of full laps per pace.
