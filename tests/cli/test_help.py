@@ -34,7 +34,7 @@ def test_the_help_gaps_of_the_probe_are_filled(capsys):
             ["learn-pace"],
             ["--scale SCALE         scale of track files", "the learned controller that climbs"],
         ),
-        (["study", "pace"], ["nmpc-dynamic's climb takes 13-15 minutes per real track"]),
+        (["study", "pace"], ["nmpc-dynamic's climb takes 6-15 minutes per real track"]),
         (["compare"], ["$XDG_CACHE_HOME/rkmpc"]),
         (["collect"], ["laps of data to record (default: 2)", "the controller that drives the laps"]),
     ]:

@@ -73,7 +73,7 @@ def help_gaps(probe: Probe) -> Evidence:
     ):
         assert "--scale SCALE scale of track files" in _help(probe, *command), command
     pace = _help(probe, "study", "pace")
-    assert "nmpc-dynamic; nmpc-dynamic's climb takes 13-15 minutes per real track" in pace
+    assert "nmpc-dynamic; nmpc-dynamic's climb takes 6-15 minutes per real track" in pace
     cache = "$RKMPC_CACHE_DIR, else $XDG_CACHE_HOME/rkmpc, else ~/.cache/rkmpc"
     assert cache in _help(probe, "compare")
     docs = " ".join((ROOT / "docs" / "experiments.md").read_text().split())

@@ -119,7 +119,7 @@ def add_study_parser(sub: Any) -> None:
         "--controllers",
         default=",".join(PACE_CONTROLLERS),
         help=f"{CONTROLLERS_HELP} (default: {','.join(PACE_CONTROLLERS)}; nmpc-dynamic's climb takes "
-        "13-15 minutes per real track, a few on the built-in one: leave it out for a quick look)",
+        "6-15 minutes per real track, a few on the built-in one: leave it out for a quick look)",
     )
     pace.add_argument("--seed", type=at_least(0), default=None, help="else the --config file's (default: 0)")
     pace.add_argument("--scale", type=float, default=None, help=SCALE_HELP)
