@@ -9,10 +9,9 @@ refused; a ROS parameter overrides a key by its dotted name within the section
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
-from rkmpc.core.errors import ParameterError
+from rkmpc.core.validation import require_bool, require_choice, require_nonnegative, require_positive_or_none
 from rkmpc.learning.data.bags.stream import RECORD_STORAGES
 
 __all__ = [
@@ -28,19 +27,6 @@ __all__ = [
 TRIGGERS = ("timer", "odometry")
 POSE_REFERENCES = ("cog", "rear_axle")
 RELIABILITIES = ("reliable", "best_effort")
-
-
-def _positive(obj: object, *names: str) -> None:
-    for name in names:
-        value = getattr(obj, name)
-        if value is not None and not (math.isfinite(value) and value > 0.0):
-            raise ParameterError(f"{name} must be finite and > 0, got {value!r}")
-
-
-def _choice(obj: object, name: str, allowed: tuple[str, ...]) -> None:
-    value = getattr(obj, name)
-    if value not in allowed:
-        raise ParameterError(f"{name} must be one of {list(allowed)}, got {value!r}")
 
 
 @dataclass(frozen=True)
@@ -109,11 +95,9 @@ class OdometrySettings:
     yaw_rate: bool = True
 
     def __post_init__(self) -> None:
-        _choice(self, "pose", POSE_REFERENCES)
-        _choice(self, "reliability", RELIABILITIES)
-        for name in ("lateral_velocity", "yaw_rate"):
-            if not isinstance(getattr(self, name), bool):
-                raise ParameterError(f"{name} must be true or false, got {getattr(self, name)!r}")
+        require_choice(self, "pose", POSE_REFERENCES)
+        require_choice(self, "reliability", RELIABILITIES)
+        require_bool(self, "lateral_velocity", "yaw_rate")
 
 
 @dataclass(frozen=True)
@@ -136,10 +120,7 @@ class LatencySettings:
     actuation: float = 0.0
 
     def __post_init__(self) -> None:
-        for name in ("odometry", "actuation"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value >= 0.0):
-                raise ParameterError(f"{name} must be finite and >= 0, got {value!r}")
+        require_nonnegative(self, "odometry", "actuation")
 
 
 @dataclass(frozen=True)
@@ -168,7 +149,9 @@ class SafetySettings:
     max_speed: float | None = None
 
     def __post_init__(self) -> None:
-        _positive(self, "odometry_timeout", "max_lateral_error", "max_heading_error", "max_speed")
+        require_positive_or_none(
+            self, "odometry_timeout", "max_lateral_error", "max_heading_error", "max_speed"
+        )
 
 
 @dataclass(frozen=True)
@@ -188,7 +171,7 @@ class RecordSettings:
     storage: str = "mcap"
 
     def __post_init__(self) -> None:
-        _choice(self, "storage", RECORD_STORAGES)
+        require_choice(self, "storage", RECORD_STORAGES)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -223,8 +206,8 @@ class RosSettings:
     record: RecordSettings = field(default_factory=RecordSettings)
 
     def __post_init__(self) -> None:
-        _positive(self, "rate_hz")
-        _choice(self, "trigger", TRIGGERS)
+        require_positive_or_none(self, "rate_hz")
+        require_choice(self, "trigger", TRIGGERS)
 
     @property
     def period(self) -> float:

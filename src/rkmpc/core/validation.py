@@ -9,17 +9,22 @@ from __future__ import annotations
 
 import math
 import numbers
+from collections.abc import Collection
 from typing import Any
 
 from rkmpc.core.errors import ParameterError
 
 __all__ = [
+    "is_finite_real",
     "is_integer",
     "is_positive_number",
     "is_real",
     "named_numbers",
+    "require_bool",
+    "require_choice",
     "require_nonnegative",
     "require_positive",
+    "require_positive_or_none",
     "require_positive_value",
 ]
 
@@ -34,6 +39,23 @@ def is_integer(value: Any, minimum: int | None = None) -> bool:
 def is_real(value: Any) -> bool:
     """A real number (Python or numpy, not a bool); NaN and the infinities count."""
     return isinstance(value, numbers.Real) and not isinstance(value, bool)
+
+
+def is_finite_real(value: Any) -> bool:
+    """Whether ``value`` is a finite real number: :func:`is_real` without NaN and the infinities.
+
+    Parameters
+    ----------
+    value : Any
+        The value to test, in any unit.
+
+    Returns
+    -------
+    bool
+        True for a finite Python or numpy real number (int, float, ``numpy.float32``...); False
+        for a bool, NaN, an infinity or anything that is not a real number.
+    """
+    return is_real(value) and math.isfinite(value)
 
 
 def is_positive_number(value: Any, upper: float = math.inf) -> bool:
@@ -52,6 +74,29 @@ def require_bool(obj: object, *names: str) -> None:
             raise ParameterError(f"{type(obj).__name__}.{name} must be true or false, got {value!r}")
 
 
+def require_choice(obj: object, name: str, allowed: Collection[Any]) -> None:
+    """Raise :class:`ParameterError` unless the attribute ``name`` of ``obj`` is one of ``allowed``.
+
+    Parameters
+    ----------
+    obj : object
+        The object checked (a settings dataclass); its class is named in the error.
+    name : str
+        The attribute to check.
+    allowed : collection
+        The values the attribute may take (names, usually strings; ``None`` where leaving it
+        unset is allowed), compared with ``in``. The error lists them in their order.
+
+    Raises
+    ------
+    ParameterError
+        ``ClassName.name must be one of [...], got value`` for any other value.
+    """
+    value = getattr(obj, name)
+    if value not in allowed:
+        raise ParameterError(f"{type(obj).__name__}.{name} must be one of {list(allowed)}, got {value!r}")
+
+
 def require_nonnegative(obj: object, *names: str) -> None:
     """Raise :class:`ParameterError` unless each named attribute is finite and >= 0."""
     for name in names:
@@ -65,6 +110,30 @@ def require_positive(obj: object, *names: str) -> None:
     for name in names:
         value = getattr(obj, name)
         if not (math.isfinite(value) and value > 0):
+            raise ParameterError(f"{type(obj).__name__}.{name} must be finite and > 0, got {value!r}")
+
+
+def require_positive_or_none(obj: object, *names: str) -> None:
+    """Raise :class:`ParameterError` unless each named attribute is None or finite and > 0.
+
+    :func:`require_positive` that lets ``None`` (a setting left unset) through.
+
+    Parameters
+    ----------
+    obj : object
+        The object checked (a settings dataclass); its class is named in the error.
+    *names : str
+        The attributes to check, in order; each a number in its own unit (s, Hz, m...) or None.
+
+    Raises
+    ------
+    ParameterError
+        ``ClassName.name must be finite and > 0, got value`` for the first attribute that is
+        neither None nor a finite number > 0.
+    """
+    for name in names:
+        value = getattr(obj, name)
+        if value is not None and not (math.isfinite(value) and value > 0):
             raise ParameterError(f"{type(obj).__name__}.{name} must be finite and > 0, got {value!r}")
 
 

@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any, ClassVar, Protocol, TypeVar
 
 from rkmpc.core.errors import ParameterError
-from rkmpc.core.validation import is_integer
+from rkmpc.core.validation import is_integer, require_choice
 from rkmpc.core.versions import versions
 from rkmpc.experiments.backends import BACKENDS, check_backend
 from rkmpc.experiments.journal import JobJournal
@@ -53,8 +53,7 @@ class Parallel:
     address: str | None = None
 
     def __post_init__(self) -> None:
-        if self.backend not in BACKENDS:
-            raise ParameterError(f"Parallel.backend must be one of {list(BACKENDS)}, got {self.backend!r}")
+        require_choice(self, "backend", BACKENDS)
         if not is_integer(self.n_jobs) or self.n_jobs == 0 or self.n_jobs < -1:
             raise ParameterError(f"Parallel.n_jobs must be a positive integer or -1, got {self.n_jobs!r}")
         if self.address is not None and self.backend == "loky":

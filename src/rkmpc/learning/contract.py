@@ -20,7 +20,6 @@ contracts still loads, and checking it warns once that its fields are not checke
 from __future__ import annotations
 
 import math
-import numbers
 import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, fields, replace
@@ -29,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from rkmpc.core.errors import ContractError, ContractWarning, ParameterError
+from rkmpc.core.validation import is_finite_real
 
 __all__ = ["CHECKED_FIELDS", "CONTRACT_KEY", "Provenance", "contract_of"]
 
@@ -44,12 +44,7 @@ def _optional_positive(obj: object, name: str) -> None:
     value = getattr(obj, name)
     if value is None:
         return
-    if (
-        isinstance(value, bool)
-        or not isinstance(value, numbers.Real)
-        or not math.isfinite(value)
-        or value <= 0
-    ):
+    if not is_finite_real(value) or value <= 0:
         raise ParameterError(f"{type(obj).__name__}.{name} must be None or finite and > 0, got {value!r}")
     object.__setattr__(obj, name, float(value))
 

@@ -16,7 +16,7 @@ from collections.abc import Mapping
 from dataclasses import KW_ONLY, dataclass
 
 from rkmpc.core.errors import ParameterError
-from rkmpc.core.validation import is_integer, is_real, named_numbers
+from rkmpc.core.validation import is_integer, is_real, named_numbers, require_choice
 from rkmpc.learning.servo_model import MAX_DELAY, SERVO_STRUCTURES
 from rkmpc.learning.tyre_model import IdentifiedTyres
 from rkmpc.learning.understeer import UNDERSTEER_RANGE
@@ -54,11 +54,6 @@ def _check_range(field: str, value: object, bounds: tuple[float, float], unit: s
             f"{_NAME}.{field} must be a number in [{low:g}, {high:g}] {unit} (plausible for a car), "
             f"got {value!r}"
         )
-
-
-def _check_choice(field: str, value: object, choices: tuple[str | None, ...]) -> None:
-    if value not in choices:
-        raise ParameterError(f"{_NAME}.{field} must be one of {choices}, got {value!r}")
 
 
 @dataclass(frozen=True)
@@ -164,12 +159,12 @@ class IdentifiedModel:
         for field in ("n_samples", "folds"):
             if not is_integer(getattr(self, field), 0):
                 raise ParameterError(f"{_NAME}.{field} must be an integer >= 0, got {getattr(self, field)!r}")
-        _check_choice("servo_structure", self.servo_structure, SERVO_STRUCTURE_NAMES)
+        require_choice(self, "servo_structure", SERVO_STRUCTURE_NAMES)
         _check_range("servo_delay", self.servo_delay, (0.0, MAX_DELAY), "s")
         if self.servo_rate_limit is not None:
             _check_range("servo_rate_limit", self.servo_rate_limit, RATE_LIMIT_RANGE, "rad/s")
-        _check_choice("status", self.status, MODEL_STATUSES)
-        _check_choice("fitted_on", self.fitted_on, (*FIT_SIGNALS, None))
+        require_choice(self, "status", MODEL_STATUSES)
+        require_choice(self, "fitted_on", (*FIT_SIGNALS, None))
         if not isinstance(self.warnings, (tuple, list)) or not all(isinstance(w, str) for w in self.warnings):
             raise ParameterError(f"{_NAME}.warnings must be a sequence of strings, got {self.warnings!r}")
         object.__setattr__(self, "warnings", tuple(self.warnings))

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from rkmpc.core.errors import ParameterError
-from rkmpc.core.validation import is_integer, is_real, named_numbers
+from rkmpc.core.validation import is_integer, is_real, named_numbers, require_choice
 from rkmpc.vehicle.params import PacejkaParams, VehicleParams
 from rkmpc.vehicle.tyres import LinearTyre, PacejkaTyre, TyreModel
 
@@ -79,8 +79,7 @@ class AxleCurve:
     parameters: tuple[float, ...]
 
     def __post_init__(self) -> None:
-        if self.kind not in CURVE_KINDS:
-            raise ParameterError(f"AxleCurve.kind must be one of {tuple(CURVE_KINDS)}, got {self.kind!r}")
+        require_choice(self, "kind", CURVE_KINDS)
         names = CURVE_KINDS[self.kind]
         values = self.parameters
         if (
@@ -239,10 +238,7 @@ class IdentifiedTyres:
             ("wheel", WHEEL_SOURCES),
             ("servo", SERVO_SOURCES),
         ):
-            if getattr(self, field) not in choices:
-                raise ParameterError(
-                    f"{_NAME}.{field} must be one of {choices}, got {getattr(self, field)!r}"
-                )
+            require_choice(self, field, choices)
         if (self.status == "nominal") != (self.structure == "nominal"):
             raise ParameterError(
                 f"{_NAME}: status {self.status!r} with structure {self.structure!r} "

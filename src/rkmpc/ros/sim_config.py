@@ -2,13 +2,12 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 from rkmpc.config.car import CarConfig
 from rkmpc.config.loader import load_preset
 from rkmpc.core.errors import ParameterError
-from rkmpc.core.validation import is_integer
+from rkmpc.core.validation import is_integer, require_choice, require_nonnegative, require_positive_or_none
 
 __all__ = ["CLOCKS", "SimNodeConfig"]
 
@@ -79,16 +78,13 @@ class SimNodeConfig:
     startup_timeout: float | None = None
 
     def __post_init__(self) -> None:
-        if self.clock not in CLOCKS:
-            raise ParameterError(f"clock must be one of {list(CLOCKS)}, got {self.clock!r}")
+        require_choice(self, "clock", CLOCKS)
         if not is_integer(self.laps, 1):
             raise ParameterError(f"laps must be an integer >= 1, got {self.laps!r}")
-        for name in ("period", "physics_rate_hz", "odometry_rate_hz", "answer_timeout", "startup_timeout"):
-            value = getattr(self, name)
-            if value is not None and not (math.isfinite(value) and value > 0.0):
-                raise ParameterError(f"{name} must be finite and > 0, got {value!r}")
-        if not (math.isfinite(self.actuation_delay) and self.actuation_delay >= 0.0):
-            raise ParameterError(f"actuation_delay must be finite and >= 0, got {self.actuation_delay!r}")
+        require_positive_or_none(
+            self, "period", "physics_rate_hz", "odometry_rate_hz", "answer_timeout", "startup_timeout"
+        )
+        require_nonnegative(self, "actuation_delay")
         steps = self.period * self.physics_rate_hz
         if abs(steps - round(steps)) > 1e-6:
             raise ParameterError(

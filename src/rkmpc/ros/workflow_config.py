@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from rkmpc.core.errors import ParameterError
+from rkmpc.core.validation import require_choice
 from rkmpc.ros.sim_config import CLOCKS
 from rkmpc.vehicle.sensors import get_sensor_profile
 
@@ -62,8 +63,7 @@ class WorkflowConfig:
     def __post_init__(self) -> None:
         from rkmpc.learning.recipes import recipe_for
 
-        if self.clock not in CLOCKS:
-            raise ParameterError(f"clock must be one of {list(CLOCKS)}, got {self.clock!r}")
+        require_choice(self, "clock", CLOCKS)
         if self.record_laps < 1:
             raise ParameterError(f"record_laps must be >= 1, got {self.record_laps}")
         if not (self.delay >= 0.0 and self.timeout > 0.0):

@@ -27,17 +27,10 @@ KINEMATIC_STATE_NAMES: tuple[str, ...] = ("x", "y", "theta")
 KINEMATIC_INPUT_NAMES: tuple[str, ...] = ("v", "delta")
 
 
-def _check_wheelbase(wheelbase: float) -> float:
-    value = float(wheelbase)
+def _positive_float(given: float, name: str) -> float:
+    value = float(given)
     if not (math.isfinite(value) and value > 0.0):
-        raise ParameterError(f"wheelbase must be finite and > 0, got {wheelbase!r}")
-    return value
-
-
-def _check_dt(dt: float) -> float:
-    value = float(dt)
-    if not (math.isfinite(value) and value > 0.0):
-        raise ParameterError(f"dt must be finite and > 0, got {dt!r}")
+        raise ParameterError(f"{name} must be finite and > 0, got {given!r}")
     return value
 
 
@@ -65,7 +58,7 @@ def kinematic_rhs(state: ArrayLike, u: ArrayLike, wheelbase: float) -> np.ndarra
     numpy.ndarray, shape (3,)
         ``[xdot, ydot, thetadot]`` (m/s, m/s, rad/s).
     """
-    length = _check_wheelbase(wheelbase)
+    length = _positive_float(wheelbase, "wheelbase")
     x = _as_vector(state, 3, "state")
     inp = _as_vector(u, 2, "u")
     speed, steer = float(inp[0]), float(inp[1])
@@ -96,8 +89,8 @@ def kinematic_step(state: ArrayLike, u: ArrayLike, wheelbase: float, dt: float) 
     numpy.ndarray, shape (3,)
         The state after ``dt``.
     """
-    length = _check_wheelbase(wheelbase)
-    step = _check_dt(dt)
+    length = _positive_float(wheelbase, "wheelbase")
+    step = _positive_float(dt, "dt")
     x = _as_vector(state, 3, "state")
     inp = _as_vector(u, 2, "u")
     speed, steer = float(inp[0]), float(inp[1])
@@ -151,8 +144,8 @@ def linearize_discrete(
     B : numpy.ndarray, shape (n, 3, 2), or (3, 2) for scalar inputs
         Input matrices.
     """
-    length = _check_wheelbase(wheelbase)
-    step = _check_dt(dt)
+    length = _positive_float(wheelbase, "wheelbase")
+    step = _positive_float(dt, "dt")
     theta, speed, steer = np.broadcast_arrays(
         np.asarray(theta_r, dtype=float), np.asarray(v_r, dtype=float), np.asarray(delta_r, dtype=float)
     )

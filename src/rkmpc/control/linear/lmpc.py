@@ -19,8 +19,8 @@ from rkmpc.control.linear.problem import KinematicMPCProblem, Prediction
 from rkmpc.control.qp import QP_SOLVERS, make_qp
 from rkmpc.control.tracking import Solution, TrackingController, TrackingCost, check_iterations
 from rkmpc.core.angles import wrap_scalar
-from rkmpc.core.errors import ParameterError
 from rkmpc.core.observation import Observation
+from rkmpc.core.validation import require_choice
 from rkmpc.vehicle.params import VehicleParams
 
 if TYPE_CHECKING:
@@ -54,8 +54,7 @@ class LMPCConfig(TrackingCost):
     def __post_init__(self) -> None:
         super().__post_init__()
         check_iterations(self, self.max_iterations)
-        if self.solver not in QP_SOLVERS:
-            raise ParameterError(f"LMPCConfig.solver must be one of {list(QP_SOLVERS)}, got {self.solver!r}")
+        require_choice(self, "solver", QP_SOLVERS)
 
 
 class LinearMPC(TrackingController):

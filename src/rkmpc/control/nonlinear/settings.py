@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 from rkmpc.control.tracking import TrackingCost, check_iterations
 from rkmpc.core.errors import ParameterError
-from rkmpc.core.validation import require_positive
+from rkmpc.core.validation import require_choice, require_positive
 
 __all__ = ["HESSIANS", "SOLVERS", "NMPCConfig"]
 
@@ -68,10 +68,9 @@ class NMPCConfig(TrackingCost):
         require_positive(self, "tolerance")
         if self.max_cpu_time is not None:
             require_positive(self, "max_cpu_time")
-        if self.solver not in SOLVERS:
-            raise ParameterError(f"NMPCConfig.solver must be one of {SOLVERS}, got {self.solver!r}")
+        require_choice(self, "solver", SOLVERS)
         check_iterations(self, self.max_iterations)
-        if self.hessian is not None and self.hessian not in HESSIANS:
-            raise ParameterError(f"NMPCConfig.hessian must be one of {HESSIANS}, got {self.hessian!r}")
+        if self.hessian is not None:
+            require_choice(self, "hessian", HESSIANS)
         if self.substeps is not None and self.substeps < 1:
             raise ParameterError(f"NMPCConfig.substeps must be >= 1 or None, got {self.substeps}")

@@ -11,7 +11,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from rkmpc.core.errors import ParameterError
-from rkmpc.core.validation import is_integer
+from rkmpc.core.validation import is_integer, require_choice
 from rkmpc.learning.koopman.common import as_vector, check_input, standardisation
 
 __all__ = ["RBF_KINDS", "RBF_METHODS", "RBFLifting"]
@@ -89,12 +89,10 @@ class RBFLifting:
         """Raise :class:`ParameterError` for bad settings."""
         if not is_integer(self.n_centers, 1):
             raise ParameterError(f"RBFLifting.n_centers must be an integer >= 1, got {self.n_centers!r}")
-        if self.kind not in RBF_KINDS:
-            raise ParameterError(f"RBFLifting.kind must be one of {RBF_KINDS}, got {self.kind!r}")
+        require_choice(self, "kind", RBF_KINDS)
         if not is_integer(self.seed, 0):
             raise ParameterError(f"RBFLifting.seed must be an integer >= 0, got {self.seed!r}")
-        if self.method not in RBF_METHODS:
-            raise ParameterError(f"RBFLifting.method must be one of {RBF_METHODS}, got {self.method!r}")
+        require_choice(self, "method", RBF_METHODS)
         if self.width is not None and not (np.isfinite(self.width) and self.width > 0):
             raise ParameterError(f"RBFLifting.width must be positive or None, got {self.width!r}")
 

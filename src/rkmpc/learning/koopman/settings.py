@@ -2,13 +2,11 @@
 
 from __future__ import annotations
 
-import math
-import numbers
 from dataclasses import dataclass, fields
 from typing import ClassVar
 
 from rkmpc.core.errors import ParameterError
-from rkmpc.core.validation import is_integer
+from rkmpc.core.validation import is_finite_real, is_integer
 
 __all__ = ["TRAINING_THREADS", "MLPTraining"]
 
@@ -62,8 +60,7 @@ class MLPTraining:
                 if not is_integer(value, low):
                     raise ParameterError(f"MLPTraining.{f.name} must be an integer >= {low}, got {value!r}")
                 continue
-            ok = isinstance(value, numbers.Real) and not isinstance(value, bool) and math.isfinite(value)
-            ok = ok and (value > 0 if f.name in self._POSITIVE else value >= 0)
+            ok = is_finite_real(value) and (value > 0 if f.name in self._POSITIVE else value >= 0)
             if not ok:
                 bound = "> 0" if f.name in self._POSITIVE else ">= 0"
                 raise ParameterError(f"MLPTraining.{f.name} must be a finite number {bound}, got {value!r}")

@@ -6,13 +6,8 @@ from abc import ABC, abstractmethod
 from dataclasses import asdict
 from typing import Any, ClassVar
 
-from rkmpc.core.validation import require_positive_value
 from rkmpc.sim.scenario import Scenario
 from rkmpc.vehicle.plants.base import Plant
-
-
-def _finite_positive(owner: str, name: str, value: float) -> None:
-    require_positive_value(value, f"{owner}.{name}")
 
 
 class Fault(ABC):

@@ -12,7 +12,8 @@ from typing import ClassVar
 import numpy as np
 
 from rkmpc.core.errors import ParameterError
-from rkmpc.sim.faults.base import Fault, _finite_positive
+from rkmpc.core.validation import require_positive_value
+from rkmpc.sim.faults.base import Fault
 from rkmpc.sim.scenario import Scenario
 from rkmpc.track.path import Path
 from rkmpc.track.track import Track
@@ -88,8 +89,8 @@ class FrictionFault(Fault):
     start_fraction: float | None = None
 
     def __post_init__(self) -> None:
-        _finite_positive("FrictionFault", "factor", self.factor)
-        _finite_positive("FrictionFault", "lap_fraction", self.lap_fraction)
+        require_positive_value(self.factor, "FrictionFault.factor")
+        require_positive_value(self.lap_fraction, "FrictionFault.lap_fraction")
         if self.lap_fraction > 1.0:
             raise ParameterError(f"FrictionFault.lap_fraction must be in (0, 1], got {self.lap_fraction!r}")
         if self.start_fraction is not None and not (
@@ -163,7 +164,7 @@ class HeavyFault(Fault):
     fixed_drive_force: bool = True
 
     def __post_init__(self) -> None:
-        _finite_positive("HeavyFault", "mass_factor", self.mass_factor)
+        require_positive_value(self.mass_factor, "HeavyFault.mass_factor")
         value = self.tyre_load_sensitivity
         if isinstance(value, bool) or not isinstance(value, int | float) or not 0.0 <= value <= 1.0:
             raise ParameterError(f"HeavyFault.tyre_load_sensitivity must be in [0, 1], got {value!r}")

@@ -6,7 +6,8 @@ from dataclasses import dataclass
 from typing import ClassVar
 
 from rkmpc.core.errors import ParameterError
-from rkmpc.sim.faults.base import Fault, _finite_positive
+from rkmpc.core.validation import require_positive_value
+from rkmpc.sim.faults.base import Fault
 from rkmpc.sim.scenario import Scenario
 from rkmpc.vehicle.plants.base import Plant
 from rkmpc.vehicle.wrappers import CommandDelay, NoiseStd, ObservationNoise
@@ -64,7 +65,7 @@ class DelayFault(Fault):
     delay: float = 0.05
 
     def __post_init__(self) -> None:
-        _finite_positive("DelayFault", "delay", self.delay)
+        require_positive_value(self.delay, "DelayFault.delay")
 
     def steps(self, dt: float) -> int:
         """The delay in control periods of ``dt`` seconds.

@@ -10,12 +10,12 @@ samples in flight), is simulated by :class:`rkmpc.vehicle.sensors.localiser.Loca
 from __future__ import annotations
 
 import math
-import numbers
 from dataclasses import dataclass, fields
 
 import numpy as np
 
 from rkmpc.core.errors import ParameterError
+from rkmpc.core.validation import is_finite_real
 
 __all__ = ["Localiser", "WheelSpeedSensor", "YawRateSensor"]
 
@@ -24,7 +24,7 @@ def _check_numbers(obj: object) -> None:
     """Raise :class:`ParameterError` unless every field of ``obj`` is a finite real number (not a bool)."""
     for f in fields(obj):  # type: ignore[arg-type]
         value = getattr(obj, f.name)
-        if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value):
+        if not is_finite_real(value):
             raise ParameterError(f"{type(obj).__name__}.{f.name} must be a finite number, got {value!r}")
 
 

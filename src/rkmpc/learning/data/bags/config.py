@@ -2,13 +2,11 @@
 
 from __future__ import annotations
 
-import math
-import numbers
 from dataclasses import dataclass
 from typing import Any
 
 from rkmpc.core.errors import ParameterError
-from rkmpc.core.validation import is_integer
+from rkmpc.core.validation import is_finite_real, is_integer, require_choice
 from rkmpc.learning.data.resampling import GapAndTolerance
 from rkmpc.learning.data.window import TimeWindow
 
@@ -39,23 +37,12 @@ STAMP_SOURCES = ("header", "receive")
 STORAGES = ("mcap", "sqlite3", "ros1")
 
 
-def _real(value: Any) -> bool:
-    return not isinstance(value, bool) and isinstance(value, numbers.Real) and math.isfinite(value)
-
-
 def _topic(obj: object, name: str, optional: bool = False) -> None:
     value = getattr(obj, name)
     if optional and value is None:
         return
     if not (isinstance(value, str) and value.strip() and value == value.strip()):
         raise ParameterError(f"{type(obj).__name__}.{name} must be a topic name, got {value!r}")
-
-
-def _choice(obj: object, name: str, allowed: tuple[str, ...]) -> None:
-    if getattr(obj, name) not in allowed:
-        raise ParameterError(
-            f"{type(obj).__name__}.{name} must be one of {allowed}, got {getattr(obj, name)!r}"
-        )
 
 
 @dataclass(frozen=True)
@@ -126,7 +113,7 @@ class BagImportConfig(GapAndTolerance):
         name = type(self).__name__
         if self.window is not None and not isinstance(self.window, TimeWindow):
             raise ParameterError(f"{name}.window must be None or a TimeWindow, got {self.window!r}")
-        if not (_real(self.dt) and self.dt > 0):
+        if not (is_finite_real(self.dt) and self.dt > 0):
             raise ParameterError(f"{name}.dt must be finite and > 0, got {self.dt!r}")
         for topic in ("odom_topic", "drive_topic"):
             _topic(self, topic)
@@ -134,18 +121,18 @@ class BagImportConfig(GapAndTolerance):
         topics = [t for t in (self.odom_topic, self.drive_topic, self.steer_topic) if t is not None]
         if len(set(topics)) != len(topics):
             raise ParameterError(f"{name}: the odometry, drive and steer topics must differ, got {topics}")
-        if not (_real(self.steer_gain) and self.steer_gain != 0):
+        if not (is_finite_real(self.steer_gain) and self.steer_gain != 0):
             raise ParameterError(f"{name}.steer_gain must be finite and not 0, got {self.steer_gain!r}")
-        if not _real(self.steer_offset):
+        if not is_finite_real(self.steer_offset):
             raise ParameterError(f"{name}.steer_offset must be finite, got {self.steer_offset!r}")
-        _choice(self, "odom_frame", ODOM_FRAMES)
-        _choice(self, "stamps", STAMP_SOURCES)
-        if self.max_gap is not None and not (_real(self.max_gap) and self.max_gap > 0):
+        require_choice(self, "odom_frame", ODOM_FRAMES)
+        require_choice(self, "stamps", STAMP_SOURCES)
+        if self.max_gap is not None and not (is_finite_real(self.max_gap) and self.max_gap > 0):
             raise ParameterError(f"{name}.max_gap must be None or finite and > 0, got {self.max_gap!r}")
         tolerance = self.command_tolerance
-        if tolerance is not None and not (_real(tolerance) and 0 <= tolerance < self.dt):
+        if tolerance is not None and not (is_finite_real(tolerance) and 0 <= tolerance < self.dt):
             raise ParameterError(f"{name}.command_tolerance must be None or in [0, dt), got {tolerance!r}")
-        if not (_real(self.min_slip_speed) and self.min_slip_speed >= 0):
+        if not (is_finite_real(self.min_slip_speed) and self.min_slip_speed >= 0):
             raise ParameterError(
                 f"{name}.min_slip_speed must be finite and >= 0, got {self.min_slip_speed!r}"
             )
@@ -210,19 +197,19 @@ class BagWriteConfig:
 
     def __post_init__(self) -> None:
         name = type(self).__name__
-        _choice(self, "storage", STORAGES)
+        require_choice(self, "storage", STORAGES)
         for topic in ("odom_topic", "drive_topic", "frame_id", "child_frame_id"):
             _topic(self, topic)
         _topic(self, "steer_topic", optional=True)
         topics = [t for t in (self.odom_topic, self.drive_topic, self.steer_topic) if t is not None]
         if len(set(topics)) != len(topics):
             raise ParameterError(f"{name}: the odometry, drive and steer topics must differ, got {topics}")
-        _choice(self, "odom_frame", ODOM_FRAMES)
-        if self.lr is not None and not (_real(self.lr) and self.lr > 0):
+        require_choice(self, "odom_frame", ODOM_FRAMES)
+        if self.lr is not None and not (is_finite_real(self.lr) and self.lr > 0):
             raise ParameterError(f"{name}.lr must be None or finite and > 0, got {self.lr!r}")
         if self.odom_frame == "rear-axle" and self.lr is None:
             raise ParameterError(f"{name}: odom_frame 'rear-axle' needs lr, the rear axle's distance (m)")
         for field in ("start_time", "command_delay"):
             value = getattr(self, field)
-            if not (_real(value) and value >= 0):
+            if not (is_finite_real(value) and value >= 0):
                 raise ParameterError(f"{name}.{field} must be finite and >= 0, got {value!r}")

@@ -22,7 +22,7 @@ from typing import Any
 
 from rkmpc.core.errors import ParameterError
 from rkmpc.core.jsonutil import to_json_ready
-from rkmpc.core.validation import is_integer
+from rkmpc.core.validation import is_integer, require_choice
 from rkmpc.learning.data.quality.speed_command import SPEED_COMMAND_RULES
 from rkmpc.learning.data.resampling import GapAndTolerance
 from rkmpc.learning.data.units import unit_factor
@@ -135,8 +135,7 @@ class PoseSource:
                 _name(column, "PoseSource.quaternion")
         unit_factor("length", self.unit, "PoseSource.unit")
         unit_factor("angle", self.yaw_unit, "PoseSource.yaw_unit")
-        if self.frame not in POSE_FRAMES:
-            raise ParameterError(f"PoseSource.frame must be one of {POSE_FRAMES}, got {self.frame!r}")
+        require_choice(self, "frame", POSE_FRAMES)
 
     @property
     def columns(self) -> tuple[str, ...]:
@@ -278,11 +277,7 @@ class CsvLogSpec(GapAndTolerance):
         tol = self.command_tolerance
         if tol is not None and not (_real(tol) and 0 <= tol < self.dt):
             raise ParameterError(f"CsvLogSpec.command_tolerance must be None or in [0, dt), got {tol!r}")
-        if self.speed_command not in SPEED_COMMAND_RULES:
-            raise ParameterError(
-                f"CsvLogSpec.speed_command must be one of {list(SPEED_COMMAND_RULES)}, "
-                f"got {self.speed_command!r}"
-            )
+        require_choice(self, "speed_command", SPEED_COMMAND_RULES)
         if not is_integer(self.min_samples, 1):
             raise ParameterError(f"CsvLogSpec.min_samples must be an integer >= 1, got {self.min_samples!r}")
 
