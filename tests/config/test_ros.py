@@ -50,6 +50,11 @@ def test_the_defaults_are_the_f1tenth_simulators_conventions_and_the_papers_rate
         (lambda: SafetySettings(max_lateral_error=-1.0), "max_lateral_error"),
         (lambda: SafetySettings(max_heading_error=math.nan), "max_heading_error"),
         (lambda: SafetySettings(max_speed=0.0), "max_speed must be finite and > 0"),
+        # Only max_speed may be left unset: a missing timeout or limit would leave the car unguarded.
+        (lambda: SafetySettings(odometry_timeout=None), r"SafetySettings\.odometry_timeout must be"),
+        (lambda: SafetySettings(max_lateral_error=None), r"SafetySettings\.max_lateral_error must be"),
+        (lambda: RosSettings(rate_hz=None), r"RosSettings\.rate_hz must be finite and > 0"),
+        (lambda: RosSettings(rate_hz=True), r"RosSettings\.rate_hz must be finite and > 0"),
         (lambda: RecordSettings(storage="ros1"), r"storage must be one of \['mcap', 'sqlite3'\]"),
     ],
 )

@@ -11,7 +11,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from rkmpc.core.validation import require_bool, require_choice, require_nonnegative, require_positive_or_none
+from rkmpc.core.validation import (
+    require_bool,
+    require_choice,
+    require_nonnegative,
+    require_positive,
+    require_positive_or_none,
+)
 from rkmpc.learning.data.bags.stream import RECORD_STORAGES
 
 __all__ = [
@@ -149,9 +155,8 @@ class SafetySettings:
     max_speed: float | None = None
 
     def __post_init__(self) -> None:
-        require_positive_or_none(
-            self, "odometry_timeout", "max_lateral_error", "max_heading_error", "max_speed"
-        )
+        require_positive(self, "odometry_timeout", "max_lateral_error", "max_heading_error")
+        require_positive_or_none(self, "max_speed")
 
 
 @dataclass(frozen=True)
@@ -206,7 +211,7 @@ class RosSettings:
     record: RecordSettings = field(default_factory=RecordSettings)
 
     def __post_init__(self) -> None:
-        require_positive_or_none(self, "rate_hz")
+        require_positive(self, "rate_hz")
         require_choice(self, "trigger", TRIGGERS)
 
     @property

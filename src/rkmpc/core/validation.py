@@ -106,10 +106,10 @@ def require_nonnegative(obj: object, *names: str) -> None:
 
 
 def require_positive(obj: object, *names: str) -> None:
-    """Raise :class:`ParameterError` unless each named attribute is finite and > 0."""
+    """Raise :class:`ParameterError` unless each named attribute is a finite real number > 0."""
     for name in names:
         value = getattr(obj, name)
-        if not (math.isfinite(value) and value > 0):
+        if not (is_real(value) and math.isfinite(value) and value > 0):
             raise ParameterError(f"{type(obj).__name__}.{name} must be finite and > 0, got {value!r}")
 
 
