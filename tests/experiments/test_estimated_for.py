@@ -2,8 +2,10 @@
 
 :func:`~rkmpc.experiments.training.estimated_for` replaces data whose wheel angle (or speed, or
 yaw rate) no row measured by the smoothed estimates, the wheel angle propagated through the servo
-the data show (:func:`~rkmpc.experiments.training.identified_steering`); measured data, and data
-missing a field in a few rows only (for ``check_learnable`` to name), pass as they are.
+the data show (:func:`~rkmpc.experiments.training.identified_steering`), and so does it with data
+whose metadata say a simulated car's sensors were not exact (a wheel angle measured beside a
+jumping localiser); measured data from exact sensors, and data missing a field in a few rows only
+(for ``check_learnable`` to name), pass as they are.
 
 The synthetic car: a kinematic bicycle (wheelbase of the f1tenth car, understeer 0) whose front
 wheel follows the steering commands through a given servo (:func:`wheel_angles`, the same
@@ -164,3 +166,35 @@ def test_identified_steering_recovers_a_late_servo(unmeasured):
     steering = identified_steering(unmeasured, VEHICLE)
     assert steering.source.startswith("identified") and steering.delay == pytest.approx(0.1, abs=0.02)
     assert math.isclose(steering.max_angle, VEHICLE.steering.max_angle)
+
+
+def _with_metadata(data: TransitionDataset, **metadata: object) -> TransitionDataset:
+    return TransitionDataset(data.obs, data.command, data.next_obs, data.dt, data.episode, metadata)
+
+
+def test_measured_data_from_inexact_sensors_are_estimated_keeping_the_measured_wheel(unmeasured):
+    # The controller that drives with such sensors sees the estimator's states; from the raw data a
+    # car with a wheel sensor and a jumping localiser would learn its labels from the jumps.
+    metadata = {"source": "collect", "sensors": "f1tenth-real", "sensors_ideal": False}
+    measured = _with_metadata(with_wheel(unmeasured, LATE_SERVO), **metadata)
+    out = estimated_for(recipe_of_kind("residual"), measured, VEHICLE)
+    assert out is not measured and ESTIMATION_KEY in out.metadata
+    # The estimator takes the measured wheel angle (it propagates the servo only between measurements).
+    np.testing.assert_allclose(out.obs[5:, STEER], measured.obs[5:, STEER], atol=1e-9)
+    # An identification still learns from the data as recorded.
+    assert estimated_for(recipe_of_kind("identified"), measured, VEHICLE) is measured
+
+
+def test_measured_data_from_ideal_sensors_and_their_concatenations_are_returned_as_they_are(unmeasured):
+    ideal = _with_metadata(
+        with_wheel(unmeasured, LATE_SERVO), source="collect", sensors="ideal", sensors_ideal=True
+    )
+    assert estimated_for(recipe_of_kind("residual"), ideal, VEHICLE) is ideal
+    both = TransitionDataset.concatenate([ideal, ideal])
+    assert estimated_for(recipe_of_kind("residual"), both, VEHICLE) is both
+    real = _with_metadata(ideal, source="collect", sensors="f1tenth-real", sensors_ideal=False)
+    mixed = TransitionDataset.concatenate([ideal, real])
+    assert estimated_for(recipe_of_kind("residual"), mixed, VEHICLE) is not mixed
+    # A real car's log says nothing of its sensors' exactness: learned from as its fields say.
+    bag = _with_metadata(ideal, source="bag")
+    assert estimated_for(recipe_of_kind("residual"), bag, VEHICLE) is bag

@@ -11,6 +11,7 @@ import pytest
 
 from rkmpc.analysis.metrics import lap_metrics
 from rkmpc.experiments.compare import CompareConfig, compare
+from rkmpc.sim.collect import collect
 from rkmpc.sim.run import RunSpec, drive
 from rkmpc.sim.scenario import Scenario, load_scenario
 
@@ -45,6 +46,14 @@ def test_the_lmpc_completes_a_lap_through_the_estimator(real_lap):
     assert counts["estimator_updates"] == metrics.steps
     assert 0.5 * metrics.steps < counts["estimator_poses_used"] <= metrics.steps
     assert counts["estimator_restarts_gap"] == 0 and counts["estimator_restarts_diverged"] == 0
+
+
+def test_collected_data_say_whether_their_sensors_were_exact(real_lap, builtin_lap):
+    # What estimated_for reads to learn from the estimator's states where the sensors were not exact.
+    assert (builtin_lap.metadata["sensors"], builtin_lap.metadata["sensors_ideal"]) == ("ideal", True)
+    scenario, _ = real_lap
+    data = collect(scenario, laps=1)
+    assert (data.metadata["sensors"], data.metadata["sensors_ideal"]) == (REAL, False)
 
 
 def test_the_lap_through_the_sensors_is_reproducible(real_lap):

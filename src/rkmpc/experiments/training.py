@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import math
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -69,25 +70,52 @@ def prediction_error_unit(learner: KoopmanLearner) -> str:
 def estimated_for(
     recipe: Recipe, data: TransitionDataset, vehicle: VehicleParams, estimator: EstimatorConfig | None = None
 ) -> TransitionDataset:
-    """The data a recipe learns from: as recorded, or the state estimator's where a field is unmeasured.
+    """The data a recipe learns from: as recorded, or the state estimator's smoothed estimates.
 
-    A Koopman model learns from data whose speed, yaw rate and wheel angle were measured as they
-    are; data in which one of them was never measured (no row has it: a car without a
-    steering-angle sensor, the ``f1tenth-real`` sensors) are replaced by the smoothed estimates of
-    :func:`rkmpc.estimation.labels.estimate_dataset`
-    (poses without jumps, the wheel angle propagated from the commands through the servo the data
-    show, :func:`identified_steering`, which the model records and the driving controller's
-    estimator then uses too). An identification learns from the
-    data as recorded (it identifies the servo from the yaw rate's response to the commands).
+    A Koopman model learns from the data as they are where they measured speed, yaw rate and
+    wheel angle exactly: the simulator's ideal sensors, or data whose origin is not recorded. It
+    learns from the smoothed estimates of :func:`rkmpc.estimation.labels.estimate_dataset` (poses
+    without jumps, speed and yaw rate without scale and bias; the wheel angle measured where it
+    is, else propagated from the commands through the servo the data show,
+    :func:`identified_steering`, which the model records and the driving controller's estimator
+    then uses too) where one of them was never measured (no row has it: a car without a
+    steering-angle sensor, the ``f1tenth-real`` sensors), and where the data say their sensors
+    were not exact: a simulated car's sensor profile that is not ideal (``sensors_ideal`` false in
+    the metadata of :func:`rkmpc.sim.collect.collect`, or in a part of a concatenation). The
+    controller that drives with such sensors sees the estimator's states (it stands in front of
+    it), so it learns from the same: from the raw data, a car that measures its wheel angle but
+    has a localiser whose pose jumps learned its labels from the jumps (the zoo's ``overshoot``
+    car on Austin, ``f1tenth-real`` with a wheel angle: 0.0588 m mean lateral error, the LMPC's
+    0.0207; 0.0131 m from the estimates). A log of a real car (a bag, a CSV log) says nothing of
+    its sensors' exactness and is learned from as its fields say; the imports leave out the
+    transitions across a pose jump. An identification
+    learns from the data as recorded (it identifies the servo from the yaw rate's response to the
+    commands).
     """
     if not isinstance(recipe.learner, KoopmanLearner):
         return data
     columns = [OBSERVATION_FIELDS.index(name) for name in _MEASURED]
     never = ~np.isfinite(data.obs[:, columns]).any(axis=0)
-    if not never.any():
+    if not never.any() and not _measured_by_inexact_sensors(data):
         return data  # measured (a row where one is missing is for check_learnable to name)
     config = replace(estimator if estimator is not None else EstimatorConfig(), control_period=data.dt)
     return estimate_dataset(data, vehicle, steering=identified_steering(data, vehicle), config=config)
+
+
+def _measured_by_inexact_sensors(data: TransitionDataset) -> bool:
+    """Whether the data's metadata say their sensors were not exact (:func:`estimated_for`)."""
+    return _inexact(data.metadata)
+
+
+def _inexact(meta: Mapping[str, Any]) -> bool:
+    """:func:`_measured_by_inexact_sensors` of one metadata mapping; a concatenation's of any part."""
+    if "sensors_ideal" in meta and meta["sensors_ideal"] is False:
+        return True
+    return (
+        "parts" in meta
+        and isinstance(meta["parts"], list)
+        and any(isinstance(part, Mapping) and _inexact(part) for part in meta["parts"])
+    )
 
 
 def data_fell_short(data: TransitionDataset) -> str | None:

@@ -53,9 +53,10 @@ def collect(
     TransitionDataset
         With metadata ``vehicle``, ``track``, ``scale``, ``dt`` (s),
         ``wheelbase`` (m), ``seed``, ``controller``, ``laps``, ``noise``,
-        ``outcome``, ``completed``, ``progress_laps``, ``lap_times``,
-        ``fallback_count``, ``steps``, ``status_counts``,
-        ``rkmpc_version``, ``versions``, ``source = "collect"`` and the contract
+        ``sensors`` (the sensor profile's name), ``sensors_ideal``, ``outcome``,
+        ``completed``, ``progress_laps``, ``lap_times``, ``fallback_count``,
+        ``steps``, ``status_counts``, ``rkmpc_version``, ``versions``,
+        ``source = "collect"`` and the contract
         (:attr:`TransitionDataset.contract`: car, period, scale, state ranges).
     """
     _, data = record(
@@ -82,6 +83,8 @@ def record(scenario: Scenario, spec: RunSpec, *, model: object = None) -> tuple[
         "controller": spec.controller,
         "laps": spec.laps,
         "noise": None if spec.noise is None else asdict(spec.noise),
+        "sensors": scenario.car.sensors.name,
+        "sensors_ideal": scenario.car.sensors.is_ideal,
         "outcome": result.outcome,
         "completed": result.completed,
         "progress_laps": result.progress,
