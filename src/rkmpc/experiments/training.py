@@ -88,33 +88,28 @@ def estimated_for(
     car on Austin, ``f1tenth-real`` with a wheel angle: 0.0588 m mean lateral error, the LMPC's
     0.0207; 0.0131 m from the estimates). A log of a real car (a bag, a CSV log) says nothing of
     its sensors' exactness and is learned from as its fields say; the imports leave out the
-    transitions across a pose jump. An identification
-    learns from the data as recorded (it identifies the servo from the yaw rate's response to the
-    commands).
+    transitions across a pose jump. An identification learns from the data as recorded (it
+    identifies the servo from the yaw rate's response to the commands).
     """
     if not isinstance(recipe.learner, KoopmanLearner):
         return data
     columns = [OBSERVATION_FIELDS.index(name) for name in _MEASURED]
     never = ~np.isfinite(data.obs[:, columns]).any(axis=0)
-    if not never.any() and not _measured_by_inexact_sensors(data):
+    if not never.any() and not _inexact_sensors(data.metadata):
         return data  # measured (a row where one is missing is for check_learnable to name)
     config = replace(estimator if estimator is not None else EstimatorConfig(), control_period=data.dt)
     return estimate_dataset(data, vehicle, steering=identified_steering(data, vehicle), config=config)
 
 
-def _measured_by_inexact_sensors(data: TransitionDataset) -> bool:
-    """Whether the data's metadata say their sensors were not exact (:func:`estimated_for`)."""
-    return _inexact(data.metadata)
-
-
-def _inexact(meta: Mapping[str, Any]) -> bool:
-    """:func:`_measured_by_inexact_sensors` of one metadata mapping; a concatenation's of any part."""
+def _inexact_sensors(meta: Mapping[str, Any]) -> bool:
+    """Whether a data set's metadata say its sensors were not exact (:func:`estimated_for`): its
+    ``sensors_ideal`` is false, or, for a concatenation, that of any of its parts."""
     if "sensors_ideal" in meta and meta["sensors_ideal"] is False:
         return True
     return (
         "parts" in meta
         and isinstance(meta["parts"], list)
-        and any(isinstance(part, Mapping) and _inexact(part) for part in meta["parts"])
+        and any(isinstance(part, Mapping) and _inexact_sensors(part) for part in meta["parts"])
     )
 
 
