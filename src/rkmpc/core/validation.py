@@ -109,7 +109,7 @@ def require_positive(obj: object, *names: str) -> None:
     """Raise :class:`ParameterError` unless each named attribute is a finite real number > 0."""
     for name in names:
         value = getattr(obj, name)
-        if not (is_real(value) and math.isfinite(value) and value > 0):
+        if not is_positive_number(value):
             raise ParameterError(f"{type(obj).__name__}.{name} must be finite and > 0, got {value!r}")
 
 
@@ -131,10 +131,7 @@ def require_positive_or_none(obj: object, *names: str) -> None:
         ``ClassName.name must be finite and > 0, got value`` for the first attribute that is
         neither None nor a finite number > 0.
     """
-    for name in names:
-        value = getattr(obj, name)
-        if value is not None and not (math.isfinite(value) and value > 0):
-            raise ParameterError(f"{type(obj).__name__}.{name} must be finite and > 0, got {value!r}")
+    require_positive(obj, *(name for name in names if getattr(obj, name) is not None))
 
 
 def require_positive_value(value: Any, name: str) -> float:

@@ -83,10 +83,9 @@ def estimated_for(
     were not exact: a simulated car's sensor profile that is not ideal (``sensors_ideal`` false in
     the metadata of :func:`rkmpc.sim.collect.collect`, or in a part of a concatenation). The
     controller that drives with such sensors sees the estimator's states (it stands in front of
-    it), so it learns from the same: from the raw data, a car that measures its wheel angle but
-    has a localiser whose pose jumps learned its labels from the jumps (the zoo's ``overshoot``
-    car on Austin, ``f1tenth-real`` with a wheel angle: 0.0588 m mean lateral error, the LMPC's
-    0.0207; 0.0131 m from the estimates). A log of a real car (a bag, a CSV log) says nothing of
+    it), so it learns from the same; from the raw data, a car that measures its wheel angle but
+    has a localiser whose pose jumps would learn its labels from the jumps (``docs/sensors.md``).
+    A log of a real car (a bag, a CSV log) says nothing of
     its sensors' exactness and is learned from as its fields say; the imports leave out the
     transitions across a pose jump. An identification learns from the data as recorded (it
     identifies the servo from the yaw rate's response to the commands).

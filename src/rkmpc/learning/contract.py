@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from rkmpc.core.errors import ContractError, ContractWarning, ParameterError
-from rkmpc.core.validation import is_finite_real
+from rkmpc.core.validation import is_positive_number
 
 __all__ = ["CHECKED_FIELDS", "CONTRACT_KEY", "Provenance", "contract_of"]
 
@@ -44,7 +44,7 @@ def _optional_positive(obj: object, name: str) -> None:
     value = getattr(obj, name)
     if value is None:
         return
-    if not is_finite_real(value) or value <= 0:
+    if not is_positive_number(value):
         raise ParameterError(f"{type(obj).__name__}.{name} must be None or finite and > 0, got {value!r}")
     object.__setattr__(obj, name, float(value))
 

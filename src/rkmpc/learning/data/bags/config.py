@@ -6,7 +6,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from rkmpc.core.errors import ParameterError
-from rkmpc.core.validation import is_finite_real, is_integer, require_choice
+from rkmpc.core.validation import is_finite_real, is_integer, is_positive_number, require_choice
 from rkmpc.learning.data.resampling import GapAndTolerance
 from rkmpc.learning.data.window import TimeWindow
 
@@ -113,7 +113,7 @@ class BagImportConfig(GapAndTolerance):
         name = type(self).__name__
         if self.window is not None and not isinstance(self.window, TimeWindow):
             raise ParameterError(f"{name}.window must be None or a TimeWindow, got {self.window!r}")
-        if not (is_finite_real(self.dt) and self.dt > 0):
+        if not is_positive_number(self.dt):
             raise ParameterError(f"{name}.dt must be finite and > 0, got {self.dt!r}")
         for topic in ("odom_topic", "drive_topic"):
             _topic(self, topic)
@@ -127,7 +127,7 @@ class BagImportConfig(GapAndTolerance):
             raise ParameterError(f"{name}.steer_offset must be finite, got {self.steer_offset!r}")
         require_choice(self, "odom_frame", ODOM_FRAMES)
         require_choice(self, "stamps", STAMP_SOURCES)
-        if self.max_gap is not None and not (is_finite_real(self.max_gap) and self.max_gap > 0):
+        if self.max_gap is not None and not is_positive_number(self.max_gap):
             raise ParameterError(f"{name}.max_gap must be None or finite and > 0, got {self.max_gap!r}")
         tolerance = self.command_tolerance
         if tolerance is not None and not (is_finite_real(tolerance) and 0 <= tolerance < self.dt):
@@ -205,7 +205,7 @@ class BagWriteConfig:
         if len(set(topics)) != len(topics):
             raise ParameterError(f"{name}: the odometry, drive and steer topics must differ, got {topics}")
         require_choice(self, "odom_frame", ODOM_FRAMES)
-        if self.lr is not None and not (is_finite_real(self.lr) and self.lr > 0):
+        if self.lr is not None and not is_positive_number(self.lr):
             raise ParameterError(f"{name}.lr must be None or finite and > 0, got {self.lr!r}")
         if self.odom_frame == "rear-axle" and self.lr is None:
             raise ParameterError(f"{name}: odom_frame 'rear-axle' needs lr, the rear axle's distance (m)")
