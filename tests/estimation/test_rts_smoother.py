@@ -137,7 +137,9 @@ def dataset(n: int = 200) -> tuple[TransitionDataset, np.ndarray]:
 
 def test_a_data_set_gets_estimated_observations_and_says_what_was_done():
     data, truth = dataset()
-    out = estimate_dataset(data, CAR, steering=SteeringModel.nominal(CAR))
+    # Told the data's own noise (circle's 0.05 m / 0.03 rad), the filter uses every pose.
+    told = EstimatorConfig(control_period=DT, position_std=0.05, yaw_std=0.03)
+    out = estimate_dataset(data, CAR, config=told, steering=SteeringModel.nominal(CAR))
     assert len(out) == len(data) and np.array_equal(out.command, data.command)
     assert np.all(np.isfinite(out.obs)) and np.all(np.isfinite(out.next_obs))  # slip and wheel filled in
     np.testing.assert_array_equal(out.obs[1:], out.next_obs[:-1])
