@@ -11,6 +11,7 @@ from rkmpc.core.errors import ParameterError
 from rkmpc.core.observation import Command, Observation
 from rkmpc.estimation import EstimatorConfig, StateEstimator, SteeringModel
 from rkmpc.estimation.labels import ESTIMATION_KEY, estimate_dataset, recordings
+from rkmpc.estimation.model import SingleTrackModel
 from rkmpc.estimation.smoother import rts, smooth_sequence
 from rkmpc.learning.data.dataset import TransitionDataset
 from rkmpc.vehicle.params import f1tenth
@@ -22,18 +23,25 @@ DT = 0.05
 def circle(
     n: int, seed: int = 0, scale: float = 1.1, bias: float = 0.03
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Raw observations of a car on a circle of radius 5 m at 2.5 m/s: times, (n, 7), and commands (n, 2)."""
+    """Raw observations of a car on a circle of radius 5 m at 2.5 m/s: times, (n, 7), and commands (n, 2).
+
+    Driven as the estimator's model drives it: the heading is the course less the rear axle's
+    slip, the wheel angle that of steady cornering.
+    """
     rng = np.random.default_rng(seed)
+    model = SingleTrackModel(CAR, EstimatorConfig())
+    speed, rate = 2.5, 0.5
+    slip = math.atan(model.lateral_gain(speed) * rate / speed)
     t = DT * np.arange(n)
-    yaw = 0.5 * t
+    course = rate * t
     truth = np.column_stack(
         [
-            5 * np.sin(yaw),
-            5 * (1 - np.cos(yaw)),
-            yaw,
-            np.full(n, 2.5),
-            np.full(n, 0.5),
-            np.zeros(n),
+            5 * np.sin(course),
+            5 * (1 - np.cos(course)),
+            course - slip,
+            np.full(n, speed * math.cos(slip)),
+            np.full(n, rate),
+            np.full(n, slip),
             np.zeros(n),
         ]
     )
@@ -43,7 +51,8 @@ def circle(
     raw[:, 3] = scale * truth[:, 3] + 0.05 * rng.standard_normal(n)
     raw[:, 4] = truth[:, 4] + bias + 0.03 * rng.standard_normal(n)
     raw[:, 5:] = math.nan
-    commands = np.column_stack([np.full(n, 2.5), np.full(n, math.atan(CAR.wheelbase / 5))])
+    steer = math.atan(model.effective_wheelbase(speed) * rate / speed)
+    commands = np.column_stack([np.full(n, speed), np.full(n, steer)])
     return t, raw, commands, truth
 
 
@@ -137,9 +146,7 @@ def dataset(n: int = 200) -> tuple[TransitionDataset, np.ndarray]:
 
 def test_a_data_set_gets_estimated_observations_and_says_what_was_done():
     data, truth = dataset()
-    # Told the data's own noise (circle's 0.05 m / 0.03 rad), the filter uses every pose.
-    told = EstimatorConfig(control_period=DT, position_std=0.05, yaw_std=0.03)
-    out = estimate_dataset(data, CAR, config=told, steering=SteeringModel.nominal(CAR))
+    out = estimate_dataset(data, CAR, steering=SteeringModel.nominal(CAR))
     assert len(out) == len(data) and np.array_equal(out.command, data.command)
     assert np.all(np.isfinite(out.obs)) and np.all(np.isfinite(out.next_obs))  # slip and wheel filled in
     np.testing.assert_array_equal(out.obs[1:], out.next_obs[:-1])

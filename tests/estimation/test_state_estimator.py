@@ -140,6 +140,23 @@ def test_one_update_is_filterpys_ekf_predict_and_updates_on_the_same_model():
     np.testing.assert_allclose(step.covariance, scalar.P, rtol=1e-6, atol=1e-10)
 
 
+def test_the_yaw_accelerations_noise_moves_the_heading_as_continuous_white_noise():
+    kalman = pytest.importorskip("filterpy.common", reason="filterpy 2.0.0 (the test extra) is the reference")
+    config = EstimatorConfig()
+    model = SingleTrackModel(CAR, config)
+    h = 0.05
+    q = model.process_noise(h)
+    yaw, r = STATE_NAMES.index("yaw"), STATE_NAMES.index("yaw_rate")
+    block = q[np.ix_([yaw, r], [yaw, r])].copy()
+    block[0, 0] -= config.yaw_density**2 * h  # the heading's own random walk
+    reference = kalman.Q_continuous_white_noise(
+        dim=2, dt=h, spectral_density=config.yaw_acceleration_density**2
+    )
+    np.testing.assert_allclose(block, reference, rtol=1e-12)
+    others = np.delete(np.delete(q, [yaw, r], axis=0), [yaw, r], axis=1)
+    assert np.count_nonzero(others - np.diag(np.diag(others))) == 0
+
+
 # ---------------------------------------------------------------------------- behaviour
 
 
@@ -178,6 +195,10 @@ def test_a_pose_that_did_not_change_is_no_measurement():
     held = [Observation(2.0, 0.0, 0.0, 2.0, time=1.0 + DT * k) for k in range(4)]
     drive(estimator, held)
     assert estimator.diagnostics().poses_repeated == 10 + 3
+    # Nor with a pose_time that moves on with the message (an odometry's stamp less a latency).
+    later = [Observation(2.0, 0.0, 0.0, 2.0, time=1.2 + DT * k, pose_time=1.17 + DT * k) for k in range(4)]
+    drive(estimator, later)
+    assert estimator.diagnostics().poses_repeated == 10 + 3 + 4
 
 
 def test_the_pose_is_brought_forward_over_its_latency():
@@ -190,25 +211,43 @@ def test_the_pose_is_brought_forward_over_its_latency():
     out = drive(estimator, obs)
     # The pose reports where the car was 0.1 s (0.3 m) ago; the estimate is where it is now.
     assert out[-1].x == pytest.approx(3.0 * obs[-1].time, abs=0.01)
-    too_old = replace(obs[-1], time=obs[-1].time + DT, pose_time=obs[-1].time + DT - 0.6)
+    # An older sample than the limit allows (0.6 s late: where the car was 0.6 s before then).
+    too_old = replace(
+        obs[-1], x=3.0 * (obs[-1].time + DT - 0.6), time=obs[-1].time + DT, pose_time=obs[-1].time + DT - 0.6
+    )
     estimator.update(too_old, Command(3.0, 0.0))
     assert estimator.diagnostics().poses_too_old == 1
 
 
 def test_the_sensor_scale_and_gyro_bias_are_learned_from_the_poses():
+    # A circle of radius 4 m at 2 m/s driven as the estimator's model drives it: the heading is the
+    # course less the rear axle's slip, the wheel angle that of steady cornering. (Driven
+    # kinematically instead, heading = course, the slip the model expects is found nowhere and
+    # the bias takes up part of it: 0.054 rad/s for 0.04.)
+    model = SingleTrackModel(CAR, EstimatorConfig())
+    speed, rate = 2.0, 0.5
+    slip = math.atan(model.lateral_gain(speed) * rate / speed)
+    steer = math.atan(model.effective_wheelbase(speed) * rate / speed)
     estimator = StateEstimator(CAR)
-    obs = []
+    out = []
     for k in range(400):
         t = DT * k
-        yaw = 0.5 * t  # a circle of radius 4 m at 2 m/s
-        obs.append(
-            Observation(4 * math.sin(yaw), 4 * (1 - math.cos(yaw)), yaw, 1.2 * 2.0, 0.5 + 0.04, time=t)
+        course = rate * t
+        obs = Observation(
+            4 * math.sin(course),
+            4 * (1 - math.cos(course)),
+            course - slip,
+            1.2 * speed * math.cos(slip),
+            rate + 0.04,
+            time=t,
         )
-    out = drive(estimator, obs, steer=math.atan(CAR.wheelbase / 4))
+        out.append(estimator.update(obs, None if k == 0 else Command(speed, steer)))
     diag = estimator.diagnostics()
     assert diag.speed_scale == pytest.approx(1.2, abs=0.03)
-    assert diag.gyro_bias == pytest.approx(0.04, abs=0.01)
-    assert out[-1].speed == pytest.approx(2.0, abs=0.06) and out[-1].yaw_rate == pytest.approx(0.5, abs=0.01)
+    assert diag.gyro_bias == pytest.approx(0.04, abs=0.005)
+    assert out[-1].speed == pytest.approx(2.0 * math.cos(slip), abs=0.06)
+    assert out[-1].yaw_rate == pytest.approx(0.5, abs=0.01)
+    assert out[-1].slip_angle == pytest.approx(slip, abs=0.005)
 
 
 def test_a_gap_or_a_time_going_back_restarts_the_filter():

@@ -73,6 +73,28 @@ def test_waiting_running_timeout_and_back(driver_for, builtin_scenario):
     assert driver.safety.counts == {"waiting": 1, "running": 3, "no_odometry": 1}
 
 
+def test_a_timers_step_dates_the_odometry_at_the_step_and_the_pose_at_its_own_time(
+    driver_for, builtin_scenario
+):
+    # Real time: the odometry (stamp 10.0 on the car's clock) arrived at 3.000 s wall and the timer
+    # steps at 3.017 s: a state estimator in front must predict 17 ms on, not plan from the stamp.
+    driver, controller = driver_for()
+    odometry = on_path(builtin_scenario, 1.0, t=10.0)
+    driver.on_odometry(odometry, 3.0, 3.0)
+    driver.step(3.017, 3.017)
+    seen = controller.seen[-1]
+    assert seen.time == pytest.approx(10.017) and seen.pose_time == 10.0
+    assert (seen.x, seen.y, seen.yaw, seen.speed) == (odometry.x, odometry.y, odometry.yaw, odometry.speed)
+    # A late localiser's pose keeps its own, older time.
+    driver.on_odometry(replace(odometry, time=10.05, pose_time=10.02), 3.05, 3.05)
+    driver.step(3.06, 3.06)
+    assert controller.seen[-1].time == pytest.approx(10.06) and controller.seen[-1].pose_time == 10.02
+    # Lock-step (the step at the odometry's own time): as it came.
+    driver.on_odometry(replace(odometry, time=10.1), 10.1, 3.1)
+    driver.step(10.1, 3.1)
+    assert controller.seen[-1] == replace(odometry, time=10.1)
+
+
 def test_a_too_large_error_stops_the_car_and_latches(driver_for, builtin_scenario):
     driver, _ = driver_for(RosSettings(safety=SafetySettings(max_lateral_error=0.5)))
     driver.on_odometry(on_path(builtin_scenario, 1.0, offset=0.8), 0.0, 0.0)

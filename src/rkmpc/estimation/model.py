@@ -107,9 +107,20 @@ class SingleTrackModel:
         return self.lr - self.rear_compliance * vx * vx
 
     def process_noise(self, h: float) -> np.ndarray:
-        """``Q`` (8, 8) of a step of ``h`` seconds: ``diag(q) h`` (the last one kept: steps repeat)."""
+        """``Q`` (8, 8) of a step of ``h`` seconds (the last one kept: steps repeat).
+
+        ``diag(q) h``, except that the yaw acceleration's white noise (density ``q_r``) moves the
+        heading too, by its integral over the step: ``Q[yaw, yaw] += q_r h^3 / 3`` and
+        ``Q[yaw, r] = q_r h^2 / 2``. Without the coupling the yaw rate a gyro measures at the end
+        of a step corrects the rate, not the heading the rate turned through, and the heading lags
+        the truth by a fraction of the step wherever the rate changes.
+        """
         if h != self._q_step:
-            self._q_step, self._q_last = h, self._q_matrix * h
+            q = self._q_matrix * h
+            q_r = self.q[R]
+            q[YAW, YAW] += q_r * h**3 / 3.0
+            q[YAW, R] = q[R, YAW] = q_r * h * h / 2.0
+            self._q_step, self._q_last = h, q
         return self._q_last
 
     def transition(self, state: list[float], h: float, delta: float) -> list[float]:

@@ -56,6 +56,7 @@ def observation_from_odometry(
     steer: float = math.nan,
     lateral_velocity: bool = True,
     yaw_rate: bool = True,
+    pose_latency: float = 0.0,
 ) -> Observation:
     """The observation an odometry message reports.
 
@@ -71,14 +72,18 @@ def observation_from_odometry(
     lateral_velocity, yaw_rate : bool
         Whether ``twist.linear.y`` and ``twist.angular.z`` are measured; when not, the slip angle
         and the yaw rate are NaN (unmeasured), never 0.
+    pose_latency : float
+        How much older than the stamp the pose is (s, >= 0): a localiser's processing delay, when
+        its pose travels in an odometry stamped as the twist is. 0: as current as the stamp.
 
     Returns
     -------
     Observation
         Position of the centre of gravity, heading, ``speed`` = ``twist.linear.x`` (along the
         heading), yaw rate = ``twist.angular.z``, slip angle = ``atan2(vy, vx)`` (0 at standstill),
-        ``time`` = the header stamp (s); ``pose_time`` NaN: the pose is as current as its stamp (a
-        message that repeats the last pose is no new pose for the state estimator).
+        ``time`` = the header stamp (s); ``pose_time`` = the stamp less ``pose_latency``, NaN
+        where that is 0 (the pose is as current as its stamp). A message that repeats the last
+        pose is no new pose for the state estimator.
     """
     pose = msg.pose.pose
     q = pose.orientation
@@ -95,6 +100,7 @@ def observation_from_odometry(
         slip_angle=(math.atan2(vy, vx) if (vx or vy) else 0.0) if lateral_velocity else math.nan,
         steer_angle=float(steer),
         time=stamp,
+        pose_time=stamp - pose_latency if pose_latency > 0.0 else math.nan,
     )
 
 

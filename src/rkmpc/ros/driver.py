@@ -268,7 +268,7 @@ class CarDriver:
     def _compensated(self, observation: Observation, time: float) -> Observation:
         latency = self.config.latency
         if not latency.compensate:
-            return observation
+            return self._dated(observation, time)
         return propagate(
             observation,
             self.history,
@@ -278,6 +278,20 @@ class CarDriver:
             actuation=latency.actuation,
             wheelbase=self.vehicle.wheelbase,
         )
+
+    def _dated(self, observation: Observation, time: float) -> Observation:
+        """The odometry dated at this step, its pose at its own time (real time: a timer's step).
+
+        A step later than the odometry's arrival (by ``age``) dates the observation ``age`` after
+        its stamp and keeps the pose's time (``pose_time``, else the stamp): a state estimator in
+        front of the controller then predicts to the step instead of planning from the odometry's
+        instant. Its speed and yaw rate count as current. In lock-step the age is 0.
+        """
+        age = float(time) - self._received
+        if not age > 0.0:
+            return observation
+        pose_time = observation.pose_time if math.isfinite(observation.pose_time) else observation.time
+        return replace(observation, time=observation.time + age, pose_time=pose_time)
 
     def _send(self, decision: Decision, *, add_to_history: bool) -> Decision:
         self._last = decision.command
