@@ -215,6 +215,12 @@ def test_propagation_uses_the_commands_that_act_in_the_window():
     state = kinematic_step([0.0, 0.0, 0.0], [2.0, 0.0], 0.3, 0.02)
     state = kinematic_step(state, [2.0, 0.2], 0.3, 0.05)
     assert np.allclose([late.x, late.y, late.yaw], state)
+    # A late localiser's pose, once moved, is as current as its new time: an estimator in front
+    # must not bring it forward over the localiser's latency a second time.
+    moved = propagate(
+        replace(obs, pose_time=0.02), history, 0.05, 0.05, odometry=0.0, actuation=0.05, wheelbase=0.3
+    )
+    assert moved.time == pytest.approx(0.10) and math.isnan(moved.pose_time)
 
 
 def test_the_node_compensates_when_asked(driver_for, builtin_scenario):

@@ -89,7 +89,8 @@ def propagate(
     Returns
     -------
     Observation
-        Pose and ``time`` at ``now + actuation``; the other fields as measured.
+        Pose and ``time`` at ``now + actuation``, ``pose_time`` NaN (the pose is as current as that
+        time: a state estimator must not bring it forward again); the other fields as measured.
     """
     start = received - odometry
     end = now + actuation
@@ -107,4 +108,6 @@ def propagate(
         acting = history.active_at(t - actuation) or fallback
         state = kinematic_step(state, (speed, acting.steer), wheelbase, boundary - t)
         t = boundary
-    return replace(observation, x=float(state[0]), y=float(state[1]), yaw=float(state[2]), time=end)
+    return replace(
+        observation, x=float(state[0]), y=float(state[1]), yaw=float(state[2]), time=end, pose_time=math.nan
+    )
