@@ -221,6 +221,10 @@ def test_propagation_uses_the_commands_that_act_in_the_window():
         replace(obs, pose_time=0.02), history, 0.05, 0.05, odometry=0.0, actuation=0.05, wheelbase=0.3
     )
     assert moved.time == pytest.approx(0.10) and math.isnan(moved.pose_time)
+    # ... and it is moved from its own time, 30 ms before the odometry's: 0.02 -> 0.10.
+    state = kinematic_step([0.0, 0.0, 0.0], [2.0, 0.0], 0.3, 0.03)
+    state = kinematic_step(state, [2.0, 0.2], 0.3, 0.05)
+    assert np.allclose([moved.x, moved.y, moved.yaw], state)
 
 
 def test_the_node_compensates_when_asked(driver_for, builtin_scenario):

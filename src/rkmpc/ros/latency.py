@@ -78,7 +78,8 @@ def propagate(
     history : CommandHistory
         The commands sent, on the clock of ``received`` and ``now``.
     received : float
-        When the observation arrived (s); it was true ``odometry`` seconds before.
+        When the observation arrived (s); it was true ``odometry`` seconds before, its pose
+        ``time - pose_time`` seconds earlier still (a late localiser's).
     now : float
         Now (s); the command computed now acts at ``now + actuation``.
     odometry, actuation : float
@@ -92,7 +93,9 @@ def propagate(
         Pose and ``time`` at ``now + actuation``, ``pose_time`` NaN (the pose is as current as that
         time: a state estimator must not bring it forward again); the other fields as measured.
     """
-    start = received - odometry
+    # A late localiser's pose is older than the rest of the odometry by its own latency.
+    pose_age = observation.time - observation.pose_time if math.isfinite(observation.pose_time) else 0.0
+    start = received - odometry - max(pose_age, 0.0)
     end = now + actuation
     if not end > start:
         return observation
