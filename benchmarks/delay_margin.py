@@ -24,13 +24,14 @@ import argparse
 import numpy as np
 
 from rkmpc.experiments.models import ModelPlan, learn_models
+from rkmpc.ros.sim_config import SimNodeConfig
 from rkmpc.ros.sim_plant import PhysicsPlant
 from rkmpc.sim.build import build_controller
 from rkmpc.sim.closed_loop import SimConfig, simulate
 from rkmpc.sim.scenario import Scenario, load_scenario
 
-#: The physics step of ``rkmpc sim-node`` (s).
-PHYSICS_DT = 0.01
+#: The physics step of ``rkmpc sim-node`` (s): its default rate's.
+PHYSICS_DT = 1.0 / SimNodeConfig.physics_rate_hz
 
 
 def drive_delayed(
@@ -38,8 +39,7 @@ def drive_delayed(
 ) -> tuple[str, float, float]:
     """Outcome, mean and largest |lateral error| (m) of ``laps`` laps with a ``delay`` (s) actuation delay."""
     ctrl = build_controller(controller, scenario, model)
-    car = scenario.car.sensors.wrap(scenario.make_car_plant(0), 0)
-    plant = PhysicsPlant(car, physics_dt=PHYSICS_DT, actuation_delay=delay)
+    plant = PhysicsPlant(scenario.make_plant(0), physics_dt=PHYSICS_DT, actuation_delay=delay)
     result = simulate(plant, ctrl, scenario.track, scenario.reference, SimConfig(dt=scenario.dt, laps=laps))
     lateral = np.abs(result.log["lateral_error"])
     return result.outcome, float(lateral.mean()), float(lateral.max())

@@ -248,22 +248,20 @@ class StateEstimator:
         counts = self._counts
         if math.isfinite(px) and math.isfinite(py) and math.isfinite(pyaw):
             pose_time = obs.pose_time
-            if math.isfinite(pose_time):
-                if pose_time == self._last_pose_time or (px, py, pyaw) == self._last_pose:
-                    # Also the same values at a new time: a held pose, dated as its message less a latency.
-                    counts.poses_repeated += 1
-                elif pose_time < self._last_pose_time or t - pose_time > self.config.max_latency:
-                    counts.poses_too_old += 1
-                    self._last_pose_time = max(self._last_pose_time, pose_time)
-                else:
-                    self._last_pose_time = pose_time
-                    self._last_pose = (px, py, pyaw)
-                    self._new_pose(px, py, pyaw, max(t - pose_time, 0.0), t)
-            elif (px, py, pyaw) == self._last_pose:
+            # The same values (a pose held between localiser updates, whatever its time) or the
+            # same sample time: no new pose.
+            if (px, py, pyaw) == self._last_pose or pose_time == self._last_pose_time:
                 counts.poses_repeated += 1
-            else:
+            elif not math.isfinite(pose_time):
                 self._last_pose = (px, py, pyaw)
                 self._new_pose(px, py, pyaw, 0.0, t)
+            elif pose_time < self._last_pose_time or t - pose_time > self.config.max_latency:
+                counts.poses_too_old += 1
+                self._last_pose_time = max(self._last_pose_time, pose_time)
+            else:
+                self._last_pose_time = pose_time
+                self._last_pose = (px, py, pyaw)
+                self._new_pose(px, py, pyaw, max(t - pose_time, 0.0), t)
         if math.isfinite(obs.speed) or math.isfinite(obs.yaw_rate):
             self._motion_update(obs.speed, obs.yaw_rate)
         vx, vy = float(self._x[VX]), float(self._x[VY])

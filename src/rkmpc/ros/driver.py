@@ -192,7 +192,7 @@ class CarDriver:
             return self._send(base, add_to_history=True)
         measured = self._with_measured_steer(self._odometry)
         base = replace(base, observation=measured)
-        seen = self._compensated(measured, time)
+        seen = self._as_of_step(measured, time)
         try:
             command = self.controller.step(seen)
         except Exception as exc:  # any controller failure stops the car; the node lives on
@@ -265,7 +265,8 @@ class CarDriver:
             return replace(observation, steer_angle=self.wheel.step(previous))
         return observation
 
-    def _compensated(self, observation: Observation, time: float) -> Observation:
+    def _as_of_step(self, observation: Observation, time: float) -> Observation:
+        """What the controller is given: the odometry moved to when the command acts, else dated."""
         latency = self.config.latency
         if not latency.compensate:
             return self._dated(observation, time)
