@@ -106,6 +106,31 @@ def test_smoothing_beats_filtering_and_both_beat_the_raw_measurements():
         assert np.sqrt(np.mean((smoothed[late, column] - truth[late, column]) ** 2)) < share * raw_error
 
 
+def test_the_smoother_runs_with_its_own_yaw_rate_model_error():
+    t, raw, commands, truth = circle(300, seed=1)
+    loop = EstimatorConfig(control_period=DT)
+    assert loop.smoothing_yaw_acceleration_density < loop.yaw_acceleration_density
+    same = EstimatorConfig(control_period=DT, yaw_acceleration_density=loop.smoothing_yaw_acceleration_density)
+    np.testing.assert_array_equal(
+        smooth_sequence(t, raw, commands, CAR, config=loop).observations,
+        smooth_sequence(t, raw, commands, CAR, config=same).observations,
+    )
+    # The causal estimates are the loop's filter, with the loop's model error.
+    assert not np.array_equal(
+        smooth_sequence(t, raw, commands, CAR, config=loop, causal=True).observations,
+        smooth_sequence(t, raw, commands, CAR, config=same, causal=True).observations,
+    )
+    # The smaller model error keeps the gyro's noise out of the smoothed yaw rate.
+    loose = EstimatorConfig(control_period=DT, smoothing_yaw_acceleration_density=loop.yaw_acceleration_density)
+    late = slice(100, None)
+
+    def yaw_rate_rms(config: EstimatorConfig) -> float:
+        smoothed = smooth_sequence(t, raw, commands, CAR, config=config).observations
+        return float(np.sqrt(np.mean((smoothed[late, 4] - truth[late, 4]) ** 2)))
+
+    assert yaw_rate_rms(loop) < yaw_rate_rms(loose)
+
+
 def test_a_reinitialisation_splits_the_sequence_into_segments():
     t, raw, commands, _ = circle(120)
     raw[60:, 1] += 1.5  # the localiser relocalised 1.5 m aside and stays there

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 from typing import Any
 
 from rkmpc.core.errors import ParameterError
@@ -50,7 +50,15 @@ class EstimatorConfig:
     lateral_velocity_density : float
         Model error of the lateral velocity (m/s/sqrt(s)).
     yaw_acceleration_density : float
-        Model error of the yaw rate (rad/s/sqrt(s)).
+        Model error of the yaw rate (rad/s/sqrt(s)) of the filter that runs in the loop: large
+        enough that the gyro, not the wheel angle's model, drives the yaw rate, so the estimate
+        keeps up with a car whose steering is later than its model says.
+    smoothing_yaw_acceleration_density : float
+        The same when a whole recording is smoothed into training labels
+        (:func:`~rkmpc.estimation.smoother.smooth_sequence`): smaller, so the labels' yaw rate and
+        heading follow the gyro's noise less. A smoother looks at the measurements after each
+        sample too, so it loses no response by it; the loop's filter would (with 2 rather than 5,
+        the LMPC behind it leaves the track under 20 ms of actuation delay).
     speed_scale_density : float
         Random walk of the wheel-speed sensor's scale (1/sqrt(s)); 0 holds the scale fixed.
     gyro_bias_density : float
@@ -96,6 +104,7 @@ class EstimatorConfig:
     acceleration_density: float = 3.0
     lateral_velocity_density: float = 0.3
     yaw_acceleration_density: float = 5.0
+    smoothing_yaw_acceleration_density: float = 2.0
     speed_scale_density: float = 0.01
     gyro_bias_density: float = 0.005
     yaw_rate_time_constant: float = 0.1
@@ -150,6 +159,10 @@ class EstimatorConfig:
             self.speed_scale_density,
             self.gyro_bias_density,
         )
+
+    def for_smoothing(self) -> EstimatorConfig:
+        """These settings with the smoother's yaw-rate model error in the filter's place."""
+        return replace(self, yaw_acceleration_density=self.smoothing_yaw_acceleration_density)
 
     def initial_stds(self) -> tuple[float, ...]:
         """The initial standard deviations in the order of the estimator's state."""

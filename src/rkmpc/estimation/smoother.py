@@ -160,7 +160,9 @@ def smooth_sequence(
     steering : SteeringModel, optional
         The servo (the car's nominal one by default).
     config : EstimatorConfig, optional
-        Tuning; its ``control_period`` must be the commands' period.
+        Tuning; its ``control_period`` must be the commands' period. The smoothed estimates run
+        the filter with its :meth:`~rkmpc.estimation.config.EstimatorConfig.for_smoothing`
+        settings, the causal ones with the loop's.
     pose_times : numpy.ndarray, optional
         When each sample's pose was measured (s), shape (n,); NaN (default) for current.
     causal : bool
@@ -171,7 +173,8 @@ def smooth_sequence(
     SmoothedSequence
     """
     t, obs, cmd, lags = _checked(times, observations, commands, pose_times)
-    estimator = StateEstimator(vehicle, config, steering)
+    settings = config if config is not None else EstimatorConfig()
+    estimator = StateEstimator(vehicle, settings if causal else settings.for_smoothing(), steering)
     n = len(t)
     steps: list[FilterStep | None] = []
     for k in range(n):
