@@ -106,29 +106,31 @@ def test_smoothing_beats_filtering_and_both_beat_the_raw_measurements():
         assert np.sqrt(np.mean((smoothed[late, column] - truth[late, column]) ** 2)) < share * raw_error
 
 
-def test_the_smoother_runs_with_its_own_yaw_rate_model_error():
+def test_the_smoother_can_run_with_its_own_yaw_rate_model_error():
     t, raw, commands, truth = circle(300, seed=1)
     loop = EstimatorConfig(control_period=DT)
-    assert loop.smoothing_yaw_acceleration_density < loop.yaw_acceleration_density
-    same = EstimatorConfig(control_period=DT, yaw_acceleration_density=loop.smoothing_yaw_acceleration_density)
+    assert loop.smoothing_yaw_acceleration_density is None and loop.for_smoothing() is loop
+    own = EstimatorConfig(control_period=DT, smoothing_yaw_acceleration_density=2.0)
+    same = EstimatorConfig(control_period=DT, yaw_acceleration_density=2.0)
     np.testing.assert_array_equal(
-        smooth_sequence(t, raw, commands, CAR, config=loop).observations,
+        smooth_sequence(t, raw, commands, CAR, config=own).observations,
         smooth_sequence(t, raw, commands, CAR, config=same).observations,
     )
     # The causal estimates are the loop's filter, with the loop's model error.
-    assert not np.array_equal(
+    np.testing.assert_array_equal(
+        smooth_sequence(t, raw, commands, CAR, config=own, causal=True).observations,
         smooth_sequence(t, raw, commands, CAR, config=loop, causal=True).observations,
-        smooth_sequence(t, raw, commands, CAR, config=same, causal=True).observations,
     )
     # The smaller model error keeps the gyro's noise out of the smoothed yaw rate.
-    loose = EstimatorConfig(control_period=DT, smoothing_yaw_acceleration_density=loop.yaw_acceleration_density)
     late = slice(100, None)
 
     def yaw_rate_rms(config: EstimatorConfig) -> float:
         smoothed = smooth_sequence(t, raw, commands, CAR, config=config).observations
         return float(np.sqrt(np.mean((smoothed[late, 4] - truth[late, 4]) ** 2)))
 
-    assert yaw_rate_rms(loop) < yaw_rate_rms(loose)
+    assert yaw_rate_rms(own) < yaw_rate_rms(loop)
+    with pytest.raises(ParameterError, match="smoothing_yaw_acceleration_density"):
+        EstimatorConfig(smoothing_yaw_acceleration_density=0.0)
 
 
 def test_a_reinitialisation_splits_the_sequence_into_segments():
@@ -183,6 +185,27 @@ def test_a_data_set_gets_estimated_observations_and_says_what_was_done():
         1.1, abs=0.03
     )
     assert estimate_dataset(data, CAR, causal=True).metadata[ESTIMATION_KEY]["method"] == "filter"
+
+
+def test_late_poses_are_dated_back_by_the_latency():
+    n = 200
+    _, raw, commands, truth = circle(n + 2, seed=3)
+    raw[1:, :3] = raw[:-1, :3]  # every pose one control period (0.05 s) late
+    raw, commands, truth = raw[1:], commands[1:], truth[1:]
+    data = TransitionDataset(
+        obs=raw[:-1], command=commands[:-1], next_obs=raw[1:], dt=DT, episode=np.zeros(n, dtype=int)
+    )
+    late = slice(50, None)
+
+    def position_rms(latency: float) -> float:
+        out = estimate_dataset(data, CAR, pose_latency=latency)
+        assert out.metadata[ESTIMATION_KEY]["pose_latency_s"] == latency
+        return float(np.sqrt(np.mean(np.sum((out.obs[late, :2] - truth[:-1][late, :2]) ** 2, axis=1))))
+
+    # 2.5 m/s for 0.05 s: the undated poses put the car 0.125 m behind itself.
+    assert position_rms(DT) < 0.05 < 0.1 < position_rms(0.0)
+    with pytest.raises(ParameterError, match="pose_latency"):
+        estimate_dataset(data, CAR, pose_latency=EstimatorConfig().max_latency)
 
 
 def test_a_gap_inside_an_episode_starts_a_new_one():

@@ -20,6 +20,7 @@ import warnings
 import numpy as np
 import pytest
 
+from rkmpc.core.errors import ParameterError
 from rkmpc.core.observation import OBSERVATION_FIELDS
 from rkmpc.estimation.labels import ESTIMATION_KEY
 from rkmpc.estimation.steering import SteeringModel, wheel_angles
@@ -198,3 +199,20 @@ def test_measured_data_from_ideal_sensors_and_their_concatenations_are_returned_
     # A real car's log says nothing of its sensors' exactness: learned from as its fields say.
     bag = _with_metadata(ideal, source="bag")
     assert estimated_for(recipe_of_kind("residual"), bag, VEHICLE) is bag
+
+
+def test_the_smoother_dates_the_poses_back_by_the_latency_the_data_record(unmeasured):
+    real = {"source": "collect", "sensors": "f1tenth-real", "sensors_ideal": False}
+    late = _with_metadata(unmeasured, **real, pose_latency=0.03)
+    residual = recipe_of_kind("residual")
+
+    def latency(data: TransitionDataset) -> float:
+        return float(estimated_for(residual, data, VEHICLE).metadata[ESTIMATION_KEY]["pose_latency_s"])
+
+    assert latency(late) == 0.03
+    # A log that does not say is taken as its stamps say; a concatenation takes its parts' latency.
+    assert latency(unmeasured) == 0.0
+    assert latency(TransitionDataset.concatenate([late, late])) == 0.03
+    other = _with_metadata(unmeasured, **real, pose_latency=0.05)
+    with pytest.raises(ParameterError, match="different times"):
+        estimated_for(residual, TransitionDataset.concatenate([late, other]), VEHICLE)

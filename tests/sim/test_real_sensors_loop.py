@@ -75,9 +75,12 @@ def test_the_lmpc_does_not_swing_behind_the_estimator(two_lmpc_laps):
 def test_collected_data_say_whether_their_sensors_were_exact(real_lap, builtin_lap):
     # What estimated_for reads to learn from the estimator's states where the sensors were not exact.
     assert (builtin_lap.metadata["sensors"], builtin_lap.metadata["sensors_ideal"]) == ("ideal", True)
+    assert builtin_lap.metadata["pose_latency"] == 0.0
     scenario, _ = real_lap
     data = collect(scenario, laps=1)
     assert (data.metadata["sensors"], data.metadata["sensors_ideal"]) == (REAL, False)
+    # And how late their poses were, for the labels' smoother to date them back (0.03 s).
+    assert data.metadata["pose_latency"] == scenario.car.sensors.localiser.latency > 0.0
 
 
 def test_the_lap_through_the_sensors_is_reproducible(real_lap):

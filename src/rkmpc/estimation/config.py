@@ -53,12 +53,15 @@ class EstimatorConfig:
         Model error of the yaw rate (rad/s/sqrt(s)) of the filter that runs in the loop: large
         enough that the gyro, not the wheel angle's model, drives the yaw rate, so the estimate
         keeps up with a car whose steering is later than its model says.
-    smoothing_yaw_acceleration_density : float
+    smoothing_yaw_acceleration_density : float or None
         The same when a whole recording is smoothed into training labels
-        (:func:`~rkmpc.estimation.smoother.smooth_sequence`): smaller, so the labels' yaw rate and
-        heading follow the gyro's noise less. A smoother looks at the measurements after each
-        sample too, so it loses no response by it; the loop's filter would (with 2 rather than 5,
-        the LMPC behind it leaves the track under 20 ms of actuation delay).
+        (:func:`~rkmpc.estimation.smoother.smooth_sequence`); None: ``yaw_acceleration_density``.
+        A smaller value keeps a noisy gyro out of the labels' yaw rate and heading; a smoother sees
+        the measurements after each sample too, so it loses no response by it, where the loop's
+        filter would (at 2 rather than 5 the LMPC behind it leaves the track under 20 ms of
+        actuation delay). It costs robustness where the car's yaw response is not the model's
+        (more gyro readings fall outside the gate). The real F1TENTH car's file sets 2
+        (``configs/f1tenth-real-car.toml``, chosen on its logs, ``docs/real-logs.md``).
     speed_scale_density : float
         Random walk of the wheel-speed sensor's scale (1/sqrt(s)); 0 holds the scale fixed.
     gyro_bias_density : float
@@ -104,7 +107,7 @@ class EstimatorConfig:
     acceleration_density: float = 3.0
     lateral_velocity_density: float = 0.3
     yaw_acceleration_density: float = 5.0
-    smoothing_yaw_acceleration_density: float = 2.0
+    smoothing_yaw_acceleration_density: float | None = None
     speed_scale_density: float = 0.01
     gyro_bias_density: float = 0.005
     yaw_rate_time_constant: float = 0.1
@@ -126,7 +129,9 @@ class EstimatorConfig:
     def __post_init__(self) -> None:
         for f in fields(self):
             value: Any = getattr(self, f.name)
-            if f.name in ("understeer_gradient", "max_rejections"):
+            if f.name in ("understeer_gradient", "max_rejections") or (
+                f.name == "smoothing_yaw_acceleration_density" and value is None
+            ):
                 continue
             number = isinstance(value, int | float) and not isinstance(value, bool)
             low_ok = number and (value >= 0.0 if f.name in _NONNEGATIVE else value > 0.0)
@@ -162,7 +167,8 @@ class EstimatorConfig:
 
     def for_smoothing(self) -> EstimatorConfig:
         """These settings with the smoother's yaw-rate model error in the filter's place."""
-        return replace(self, yaw_acceleration_density=self.smoothing_yaw_acceleration_density)
+        density = self.smoothing_yaw_acceleration_density
+        return self if density is None else replace(self, yaw_acceleration_density=density)
 
     def initial_stds(self) -> tuple[float, ...]:
         """The initial standard deviations in the order of the estimator's state."""

@@ -77,6 +77,7 @@ def estimate_dataset(
     steering: SteeringModel | None = None,
     config: EstimatorConfig | None = None,
     causal: bool = False,
+    pose_latency: float = 0.0,
 ) -> TransitionDataset:
     """``data`` with every observation replaced by its estimate.
 
@@ -92,6 +93,12 @@ def estimate_dataset(
         Tuning; its ``control_period`` must be the data's ``dt`` (by default it is).
     causal : bool
         Use the filter's estimates (what the controller sees in the loop) instead of the smoothed ones.
+    pose_latency : float
+        How much older (s) than its row each pose is (the localiser's latency, as the sensor profile
+        says: :attr:`~rkmpc.vehicle.sensors.profile.SensorProfile.pose_latency`), in [0,
+        ``config.max_latency``). The filter moves each pose forward from its own time, as it does in
+        the loop; without it the labels' poses lag the car by the latency (30 ms of the
+        ``f1tenth-real`` localiser: about a control step with the pose's hold).
 
     Returns
     -------
@@ -109,6 +116,11 @@ def estimate_dataset(
     """
     steer_model = steering if steering is not None else SteeringModel.nominal(vehicle)
     cfg = config if config is not None else EstimatorConfig(control_period=data.dt)
+    if not (math.isfinite(pose_latency) and 0.0 <= pose_latency < cfg.max_latency):
+        raise ParameterError(
+            f"estimate_dataset: pose_latency must be in [0, max_latency {cfg.max_latency!r} s), "
+            f"got {pose_latency!r}"
+        )
     if not math.isclose(cfg.control_period, data.dt, rel_tol=1e-9):
         raise ParameterError(
             f"estimate_dataset: config.control_period is {cfg.control_period!r} s, "
@@ -126,13 +138,15 @@ def estimate_dataset(
         # Without a measured wheel angle at the start, the wheel is taken as settled at the first command.
         if not math.isfinite(raw[0, _STEER]):
             raw[0, _STEER] = commands[0, 1]
+        times = data.dt * np.arange(len(raw))
         result = smooth_sequence(
-            data.dt * np.arange(len(raw)),
+            times,
             raw,
             commands,
             vehicle,
             steering=steer_model,
             config=cfg,
+            pose_times=times - pose_latency if pose_latency > 0.0 else None,
             causal=causal,
         )
         runs.append(result)
@@ -156,6 +170,7 @@ def estimate_dataset(
     metadata[ESTIMATION_KEY] = _describe(
         runs, steer_model, cfg, causal, clipped, (len(data), sum(map(len, obs)))
     )
+    metadata[ESTIMATION_KEY]["pose_latency_s"] = pose_latency
     out = TransitionDataset(
         obs=np.concatenate(obs),
         command=np.concatenate(command),

@@ -87,7 +87,8 @@ def estimated_for(
     has a localiser whose pose jumps would learn its labels from the jumps (``docs/sensors.md``).
     A log of a real car (a bag, a CSV log) says nothing of
     its sensors' exactness and is learned from as its fields say; the imports leave out the
-    transitions across a pose jump. An identification learns from the data as recorded (it
+    transitions across a pose jump. The smoother dates each pose back by the latency the data's
+    metadata record (:func:`_pose_latency`). An identification learns from the data as recorded (it
     identifies the servo from the yaw rate's response to the commands).
     """
     if not isinstance(recipe.learner, KoopmanLearner):
@@ -97,7 +98,35 @@ def estimated_for(
     if not never.any() and not _inexact_sensors(data.metadata):
         return data  # measured (a row where one is missing is for check_learnable to name)
     config = replace(estimator if estimator is not None else EstimatorConfig(), control_period=data.dt)
-    return estimate_dataset(data, vehicle, steering=identified_steering(data, vehicle), config=config)
+    return estimate_dataset(
+        data,
+        vehicle,
+        steering=identified_steering(data, vehicle),
+        config=config,
+        pose_latency=_pose_latency(data.metadata),
+    )
+
+
+def _pose_latency(meta: Mapping[str, Any]) -> float:
+    """How late (s) the data's poses were, as their metadata say (``pose_latency``, written by
+    :func:`rkmpc.sim.collect.collect` from the sensor profile); 0 where they do not say (a log of a
+    real car is taken as its stamps say).
+
+    Raises
+    ------
+    ParameterError
+        For a concatenation of parts with different latencies.
+    """
+    if "pose_latency" in meta:
+        return float(meta["pose_latency"])
+    parts = meta["parts"] if "parts" in meta and isinstance(meta["parts"], list) else []
+    latencies = {_pose_latency(part) for part in parts if isinstance(part, Mapping)}
+    if len(latencies) > 1:
+        raise ParameterError(
+            f"the data join parts whose poses were late by different times ({sorted(latencies)} s): "
+            "estimate each part on its own"
+        )
+    return latencies.pop() if latencies else 0.0
 
 
 def _inexact_sensors(meta: Mapping[str, Any]) -> bool:

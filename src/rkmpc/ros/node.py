@@ -132,8 +132,7 @@ class ControllerNode(Node):
         self._lr = self.driver.vehicle.lr if config.odometry.pose == "rear_axle" else 0.0
         # The car's localiser (its [sensors] profile) is this late: the odometry's pose is that much
         # older than its stamp, and the state estimator brings it forward (f1tenth-real: 0.03 s).
-        localiser = self.car.sensors.localiser
-        self._pose_latency = 0.0 if localiser is None else localiser.latency
+        self._pose_latency = self.car.sensors.pose_latency
         self._lockstep = config.trigger == "odometry"
         self._answered: tuple[int, int] | None = None
         self._pending_stamp: Any = None

@@ -53,7 +53,8 @@ def collect(
     TransitionDataset
         With metadata ``vehicle``, ``track``, ``scale``, ``dt`` (s),
         ``wheelbase`` (m), ``seed``, ``controller``, ``laps``, ``noise``,
-        ``sensors`` (the sensor profile's name), ``sensors_ideal``, ``outcome``,
+        ``sensors`` (the sensor profile's name), ``sensors_ideal``, ``pose_latency`` (s, the
+        localiser's latency), ``outcome``,
         ``completed``, ``progress_laps``, ``lap_times``, ``fallback_count``,
         ``steps``, ``status_counts``, ``rkmpc_version``, ``versions``,
         ``source = "collect"`` and the contract
@@ -85,6 +86,7 @@ def record(scenario: Scenario, spec: RunSpec, *, model: object = None) -> tuple[
         "noise": None if spec.noise is None else asdict(spec.noise),
         "sensors": scenario.car.sensors.name,
         "sensors_ideal": scenario.car.sensors.is_ideal,
+        "pose_latency": scenario.car.sensors.pose_latency,
         "outcome": result.outcome,
         "completed": result.completed,
         "progress_laps": result.progress,

@@ -93,6 +93,11 @@ class SensorProfile:
         """True when every field is the true value: :meth:`wrap` returns the plant unchanged."""
         return all(getattr(self, name) is None for name in _PARTS) and all(getattr(self, f) for f in _FLAGS)
 
+    @property
+    def pose_latency(self) -> float:
+        """How much older (s) than its observation the localiser's pose is; 0 without a localiser."""
+        return 0.0 if self.localiser is None else self.localiser.latency
+
     def wrap(self, plant: Plant, seed: int = 0) -> Plant:
         """The plant seen through these sensors (the plant itself when the profile is ideal).
 
