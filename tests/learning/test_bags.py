@@ -94,6 +94,24 @@ def test_without_a_steer_topic_the_wheel_angle_is_not_measured(tmp_path, builtin
     assert data.metadata["messages"]["steer"] is None
 
 
+def test_a_late_pose_is_recorded_for_the_labels_smoother(tmp_path, builtin_scenario, run):
+    from rkmpc.core.errors import ParameterError
+    from rkmpc.estimation.labels import ESTIMATION_KEY
+    from rkmpc.experiments.training import estimated_for
+    from rkmpc.learning.recipes import recipe_of_kind
+
+    path = _bag(tmp_path, "mcap")
+    write_log_bag(path, run[0])
+    assert import_bag(path, builtin_scenario.vehicle).metadata["pose_latency"] == 0.0
+    late = import_bag(path, builtin_scenario.vehicle, BagImportConfig(pose_latency=0.03))
+    assert late.metadata["pose_latency"] == 0.03
+    # No wheel angle in the bag: the residual learns from the smoother's states, the poses dated back.
+    estimated = estimated_for(recipe_of_kind("residual"), late, builtin_scenario.vehicle)
+    assert estimated.metadata[ESTIMATION_KEY]["pose_latency_s"] == 0.03
+    with pytest.raises(ParameterError, match="pose_latency"):
+        BagImportConfig(pose_latency=-0.01)
+
+
 def test_servo_gain_and_offset_give_the_wheel_angle(tmp_path, builtin_scenario, run):
     """A VESC ``servo_position_command`` topic (``gain * angle + offset``) read back as the angle."""
     log, ref = run

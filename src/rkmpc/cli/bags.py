@@ -79,6 +79,14 @@ def add_bag_args(parser: argparse.ArgumentParser) -> None:
     )
     group.add_argument("--min-samples", type=int, default=20, help="fewer transitions than this are an error")
     group.add_argument(
+        "--pose-latency",
+        type=float,
+        default=0.0,
+        metavar="S",
+        help="the odometry's pose is this much older than its stamp (s): the labels' smoother dates it "
+        "back (the rkmpc simulated car's odometry: its localiser latency, 0.03 for f1tenth-real)",
+    )
+    group.add_argument(
         "--window",
         default=None,
         metavar="START:END",
@@ -116,6 +124,7 @@ def cmd_collect_from_bag(args: argparse.Namespace) -> int:
         lateral_velocity=car.sensors.measures_slip_angle and not args.no_lateral_velocity,
         yaw_rate=not args.no_yaw_rate,
         window=_window(args),
+        pose_latency=args.pose_latency,
     )
     if args.from_log is not None or args.excitation:
         raise ValueError("--from-bag, --from-log and --excitation exclude each other")

@@ -216,9 +216,11 @@ def _import(run: _Run) -> str:
 
     bag, data = run.out / "record" / "bag", run.out / "data" / "laps.npz"
     topic = f" --steer-topic {STEERING_TOPIC}" if run.car.sensors.measures_steer_angle else ""
-    run.commands.append(f"rkmpc collect --from-bag {bag}{topic} --out {data}")
+    # The simulated car stamps its odometry when it sends it: the pose is the localiser's latency older.
+    latency = run.car.sensors.pose_latency
+    run.commands.append(f"rkmpc collect --from-bag {bag}{topic} --pose-latency {latency:g} --out {data}")
     steer = STEERING_TOPIC if run.car.sensors.measures_steer_angle else None
-    imported = import_bag(bag, run.car.vehicle, BagImportConfig(steer_topic=steer))
+    imported = import_bag(bag, run.car.vehicle, BagImportConfig(steer_topic=steer, pose_latency=latency))
     imported.save(data)
     episodes = len(set(imported.episode.tolist()))
     return f"{len(imported)} transitions in {episodes} episode(s) from {bag} -> {data}"

@@ -91,6 +91,11 @@ class BagImportConfig(GapAndTolerance):
     window : TimeWindow or None
         Keep only this stretch of the bag (seconds from the first message of the topics read, or
         absolute stamps); None: all of it.
+    pose_latency : float
+        How much older (s) than its stamp the odometry's pose is: a localiser 30 ms late whose
+        odometry is stamped when it is sent, as the rkmpc node's simulated car sends it. Recorded as
+        the data's ``pose_latency``, by which the labels' smoother dates each pose back
+        (:func:`rkmpc.experiments.training.estimated_for`). 0: the stamp is the pose's own time.
     """
 
     dt: float = 0.05
@@ -108,6 +113,7 @@ class BagImportConfig(GapAndTolerance):
     yaw_rate: bool = True
     min_samples: int = 20
     window: TimeWindow | None = None
+    pose_latency: float = 0.0
 
     def __post_init__(self) -> None:
         name = type(self).__name__
@@ -138,6 +144,8 @@ class BagImportConfig(GapAndTolerance):
             )
         if not is_integer(self.min_samples, 1):
             raise ParameterError(f"{name}.min_samples must be an integer >= 1, got {self.min_samples!r}")
+        if not (is_finite_real(self.pose_latency) and self.pose_latency >= 0):
+            raise ParameterError(f"{name}.pose_latency must be finite and >= 0, got {self.pose_latency!r}")
         for flag in ("lateral_velocity", "yaw_rate"):
             if not isinstance(getattr(self, flag), bool):
                 raise ParameterError(f"{name}.{flag} must be true or false, got {getattr(self, flag)!r}")
@@ -156,6 +164,7 @@ class BagImportConfig(GapAndTolerance):
             "min_slip_speed": self.min_slip_speed,
             "measured": {"lateral_velocity": self.lateral_velocity, "yaw_rate": self.yaw_rate},
             "window": None if self.window is None else self.window.describe(),
+            "pose_latency": self.pose_latency,
         }
 
 
