@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from projection_reference import project_plain
 from rkmpc.core.errors import ParameterError
 from rkmpc.track import Path, wrap_angle
-from rkmpc.track.projection_reference import project_plain
 
 
 def circle(radius: float, n: int = 100, clockwise: bool = False) -> Path:

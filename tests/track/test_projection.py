@@ -9,12 +9,12 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 import pytest
 
+from projection_reference import project_plain
 from rkmpc.core.errors import ParameterError
 from rkmpc.track import Path, Projection, builtin_track, load_track
 from rkmpc.track.path import Projection as PathModuleProjection
 from rkmpc.track.projection import PathProjector
 from rkmpc.track.projection import Projection as ProjectionModuleProjection
-from rkmpc.track.projection_reference import project_plain
 
 Query = tuple[float, float, float]
 

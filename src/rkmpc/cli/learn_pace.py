@@ -24,6 +24,8 @@ __all__ = ["add_learn_pace_parser", "cmd_learn_pace", "learn_pace_config"]
 
 
 def add_learn_pace_parser(sub: Any) -> None:
+    from rkmpc.learning.recipes import track_learners
+
     parser = sub.add_parser(
         "learn-pace",
         help="learning to race: LMPC laps at a safe pace, then train RKMPC on every clean lap so far "
@@ -33,7 +35,7 @@ def add_learn_pace_parser(sub: Any) -> None:
     parser.add_argument(
         "--controller",
         default="rkmpc",
-        choices=["rkmpc", "rkmpc-paper", "lmpc-id"],
+        choices=track_learners(),
         help="the learned controller that climbs the ladder",
     )
     parser.add_argument("--scale", type=float, default=None, help=SCALE_HELP)

@@ -35,6 +35,7 @@ __all__ = [
     "model_kinds",
     "recipe_for",
     "recipe_of_kind",
+    "track_learners",
 ]
 
 
@@ -228,3 +229,8 @@ def recipe_of_kind(kind: str) -> Recipe:
 def model_kinds() -> list[str]:
     """Every model kind, in table order."""
     return [r.kind for r in RECIPES]
+
+
+def track_learners() -> list[str]:
+    """The controllers whose models learn from laps of the track (``DataSource.TRACK``), in table order."""
+    return [r.controller for r in RECIPES if r.data is DataSource.TRACK]

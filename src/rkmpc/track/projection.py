@@ -5,9 +5,9 @@ closed path to a query point: the dense table of positions, headings and
 curvatures, a padded copy of it for window searches that cross ``s = 0``, a
 KD-tree for global searches, per-thread scratch buffers and a two-step local
 Newton refinement.  :class:`rkmpc.track.path.Path` builds one from its spline
-and delegates :meth:`~rkmpc.track.path.Path.project` to it;
-:mod:`rkmpc.track.projection_reference` holds a slow, plain implementation of
-the same projection that the tests compare this one against.
+and delegates :meth:`~rkmpc.track.path.Path.project` to it. The tests compare
+it against a slow, plain implementation of the same projection
+(``tests/projection_reference.py``).
 """
 
 from __future__ import annotations

@@ -92,7 +92,8 @@ def test_configs_refuse_bad_settings():
         PaceStudyConfig(tracks=("builtin",), paces=((5.0, 4.0), (4.0, 3.5)))
     with pytest.raises(ParameterError):
         PaceStudyConfig(tracks=("nowhere.csv",))
-    with pytest.raises(ParameterError, match="learn from laps"):
+    laps_only = r"learn from laps of the track \(lmpc-id, nmpc-id, rkmpc-paper, rkmpc\)"
+    with pytest.raises(ParameterError, match=laps_only):
         LearnPaceConfig(controller="kmpc")
     with pytest.raises(ParameterError, match="at least one faster"):
         LearnPaceConfig(paces=((4.0, 3.5),))
@@ -276,6 +277,22 @@ def test_learn_pace_pools_clean_laps_and_stops_at_an_unclean_one(synthetic):
     assert len(capped.iterations) == 2 and "max_iterations" in capped.stopped
     figure = plot_learn_pace(["4/3.5", "5/4"], [27.0, None], [True, False], [27.0, 24.0], [0.02, 0.1], "t")
     assert isinstance(figure, Figure)
+
+
+def test_learn_pace_climbs_with_every_controller_that_learns_from_laps(synthetic):
+    # nmpc-id identifies its tyres from the pool as lmpc-id identifies its servo: the same loop,
+    # the recipe's own model kind, the CLI's choices from the same list.
+    from rkmpc.cli import build_parser
+
+    result = learn_pace(LearnPaceConfig(controller="nmpc-id", paces=LADDER, use_cache=False))
+    assert [(it.controller, it.pace[0]) for it in result.iterations][1:] == [
+        ("nmpc-id", 5.0),
+        ("nmpc-id", 6.0),
+        ("nmpc-id", 7.0),
+    ]
+    assert {it.model["kind"] for it in result.iterations[1:]} == {"identified-tyres"}
+    args = build_parser().parse_args(["learn-pace", "--controller", "nmpc-id", "--out", "x"])
+    assert args.controller == "nmpc-id"
 
 
 def test_learn_pace_stops_where_its_model_is_refused(synthetic, monkeypatch):

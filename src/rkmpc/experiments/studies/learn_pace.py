@@ -27,7 +27,7 @@ from rkmpc.experiments.studies.pace_job import PaceStudyConfig
 from rkmpc.experiments.studies.pace_rules import Pace, car_ladder, check_ladder, pace_label, run_verdict
 from rkmpc.experiments.study import ConfigJournal, Say, StudyRun
 from rkmpc.learning.data.dataset import TransitionDataset
-from rkmpc.learning.recipes import DataSource, recipe_for
+from rkmpc.learning.recipes import recipe_for, track_learners
 from rkmpc.sim.closed_loop import SimResult
 from rkmpc.sim.collect import record
 from rkmpc.sim.run import RunSpec
@@ -54,8 +54,9 @@ class LearnPaceConfig:
         The car; its training settings give the seed, the laps recorded at every iteration (all
         must be clean to go on) and the epochs.
     controller : str
-        The learned controller (a recipe learning from laps of the track: ``rkmpc``,
-        ``rkmpc-paper``, ``lmpc-id``).
+        The learned controller (a recipe learning from laps of the track,
+        :func:`~rkmpc.learning.recipes.track_learners`: ``lmpc-id``, ``nmpc-id``, ``rkmpc-paper``,
+        ``rkmpc``).
     paces : sequence of (float, float) or None
         The ladder; its first pace is the safe one the LMPC starts at. None: the car's (from its
         own pace: :func:`~rkmpc.experiments.studies.pace_rules.car_ladder`).
@@ -81,11 +82,10 @@ class LearnPaceConfig:
     def __post_init__(self) -> None:
         check_track(str(self.track))
         object.__setattr__(self, "track", str(self.track))
-        recipe = recipe_for(self.controller)
-        if recipe is None or recipe.data is not DataSource.TRACK:
+        if self.controller not in track_learners():
             raise ParameterError(
-                f"LearnPaceConfig.controller must learn from laps of the track (rkmpc, rkmpc-paper, "
-                f"lmpc-id), got {self.controller!r}"
+                f"LearnPaceConfig.controller must learn from laps of the track "
+                f"({', '.join(track_learners())}), got {self.controller!r}"
             )
         check_scale("LearnPaceConfig.scale", self.scale)
         car = check_car("LearnPaceConfig.car", self.car)
