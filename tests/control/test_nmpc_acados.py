@@ -206,3 +206,26 @@ def test_acados_rejects_bad_options(builtin_scenario):
         AcadosKinematicNMPC(sc.reference, sc.vehicle, qp_solver="OSQP")
     with pytest.raises(ParameterError, match="limited-memory"):
         _make("nmpc-acados", sc, replace(NMPCConfig(), hessian="limited-memory"))
+
+
+def test_loading_acados_leaves_the_blas_of_later_libraries_alone():
+    # qpOASES_e, which libacados needs, defines its own reduced dgemm_ and dpotrf_. Loaded into the
+    # global scope, they stood in for the BLAS of libraries loaded after it: torch, imported after an
+    # acados NMPC was built, crashed (SIGSEGV) in its first float64 solve. A fresh process, so that
+    # torch loads after acados whatever this process has loaded.
+    import subprocess
+    import sys
+
+    code = (
+        "from rkmpc.control.nonlinear.acados_build import import_acados\n"
+        "import_acados()\n"
+        "import torch\n"
+        "a = torch.rand(8, 8, dtype=torch.float64) + 8 * torch.eye(8, dtype=torch.float64)\n"
+        "b = torch.rand(8, 3, dtype=torch.float64)\n"
+        "x = torch.linalg.solve(a, b)\n"
+        "assert torch.allclose(a @ x, b)\n"
+        "print('ok')\n"
+    )
+    command = [sys.executable, "-c", code]
+    done = subprocess.run(command, capture_output=True, text=True, timeout=120, check=False)
+    assert done.returncode == 0 and done.stdout.strip() == "ok", (done.returncode, done.stderr[-2000:])

@@ -142,6 +142,10 @@ def acados_cache_dir() -> Path:
     return base / "acados"
 
 
+#: acados's libraries, in load order (:func:`import_acados`).
+_PRELOAD = ("libblasfeo.so", "libhpipm.so", "libqpOASES_e.so.3.1", "libacados.so")
+
+
 def import_acados() -> tuple[Any, Any]:
     """Import acados, set its environment and preload its libraries.
 
@@ -162,11 +166,14 @@ def import_acados() -> tuple[Any, Any]:
     os.environ.setdefault("ACADOS_SOURCE_DIR", acados.DIR)
     os.environ.setdefault("TERA_PATH", acados.TERA_PATH)
     os.environ.setdefault("ACADOS_PYTHON_INTERFACE_PATH", acados.TEMPLATE_DIR)
-    # libacados.so has no RPATH: load its dependencies globally before the generated solver.
-    for lib in ("libblasfeo.so", "libhpipm.so", "libqpOASES_e.so.3.1", "libacados.so"):
+    # libacados.so has no RPATH: load it and its dependencies before the generated solver, which
+    # then finds them by name. Locally, not globally: qpOASES_e (a dependency of libacados) brings
+    # its own reduced dgemm_ and dpotrf_, which, in the global scope, would stand in for the BLAS of
+    # every library loaded after it (torch's float64 solve crashed on them).
+    for lib in _PRELOAD:
         path = os.path.join(acados.LIB_DIR, lib)
         if os.path.exists(path):
-            ctypes.CDLL(path, mode=ctypes.RTLD_GLOBAL)
+            ctypes.CDLL(path, mode=ctypes.RTLD_LOCAL)
     return acados, acados_template
 
 
