@@ -142,10 +142,6 @@ def acados_cache_dir() -> Path:
     return base / "acados"
 
 
-#: acados's libraries, in load order (:func:`import_acados`).
-_PRELOAD = ("libblasfeo.so", "libhpipm.so", "libqpOASES_e.so.3.1", "libacados.so")
-
-
 def import_acados() -> tuple[Any, Any]:
     """Import acados, set its environment and preload its libraries.
 
@@ -170,7 +166,7 @@ def import_acados() -> tuple[Any, Any]:
     # then finds them by name. Locally, not globally: qpOASES_e (a dependency of libacados) brings
     # its own reduced dgemm_ and dpotrf_, which, in the global scope, would stand in for the BLAS of
     # every library loaded after it (torch's float64 solve crashed on them).
-    for lib in _PRELOAD:
+    for lib in ("libblasfeo.so", "libhpipm.so", "libqpOASES_e.so.3.1", "libacados.so"):
         path = os.path.join(acados.LIB_DIR, lib)
         if os.path.exists(path):
             ctypes.CDLL(path, mode=ctypes.RTLD_LOCAL)

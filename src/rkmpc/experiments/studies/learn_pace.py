@@ -82,10 +82,11 @@ class LearnPaceConfig:
     def __post_init__(self) -> None:
         check_track(str(self.track))
         object.__setattr__(self, "track", str(self.track))
-        if self.controller not in track_learners():
+        learners = track_learners()
+        if self.controller not in learners:
             raise ParameterError(
                 f"LearnPaceConfig.controller must learn from laps of the track "
-                f"({', '.join(track_learners())}), got {self.controller!r}"
+                f"({', '.join(learners)}), got {self.controller!r}"
             )
         check_scale("LearnPaceConfig.scale", self.scale)
         car = check_car("LearnPaceConfig.car", self.car)
