@@ -266,8 +266,9 @@ def plot_learn_pace(
     )
     ax_lat.plot(x[ok], lat[ok], marker="o", **rk)
     ax_lat.plot(x[~ok], lat[~ok], "x", color=rk["color"], markersize=10)
+    shown = [int(i) for i in _thinned(range(len(labels)), MAX_PACE_TICKS)]
     for ax in (ax_time, ax_lat):
-        ax.set_xticks(x, [f"{i}\n{label}" for i, label in enumerate(labels)])
+        ax.set_xticks(shown, [f"{i}\n{labels[i]}" for i in shown])
         ax.set_xlabel("iteration / pace (m/s$^2$ / m/s)")
         ax.grid(True, alpha=0.3)
     ax_time.set_ylabel("lap time (s)")

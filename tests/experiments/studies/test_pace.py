@@ -277,6 +277,11 @@ def test_learn_pace_pools_clean_laps_and_stops_at_an_unclean_one(synthetic):
     assert len(capped.iterations) == 2 and "max_iterations" in capped.stopped
     figure = plot_learn_pace(["4/3.5", "5/4"], [27.0, None], [True, False], [27.0, 24.0], [0.02, 0.1], "t")
     assert isinstance(figure, Figure)
+    # A climb to the top of the ladder (41 iterations) keeps its pace labels readable: every k-th.
+    n = 41
+    long = plot_learn_pace([f"{i}/8" for i in range(n)], [20.0] * n, [True] * n, [None] * n, [0.1] * n, "t")
+    ticks = [t.get_text() for t in long.axes[0].get_xticklabels()]
+    assert len(ticks) <= 11 and ticks[0] == "0\n0/8" and ticks[-1] == "40\n40/8"
 
 
 def test_learn_pace_climbs_with_every_controller_that_learns_from_laps(synthetic):
