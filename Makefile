@@ -67,12 +67,13 @@ demo: $(VENV)/.installed
 demo-quick: $(VENV)/.installed
 	$(BIN)/rkmpc compare --track builtin --controllers lmpc,lmpc-id,rkmpc --out runs/demo-quick --force
 
-# The fast tier (under 4 minutes on two quiet cores); `make test-slow` runs the long end-to-end tests.
+# The fast tier, on two pytest workers (under 4 minutes on two quiet cores); `make test-slow` runs the
+# long end-to-end tests, one at a time.
 test: $(VENV)/.installed-test $(VENV)/.installed-acados $(VENV)/.installed-ros $(F1TENTH_GYM_FOR_TESTS)
 	$(BIN)/ruff check src tests benchmarks
 	$(BIN)/ruff format --check src tests benchmarks
 	$(BIN)/mypy
-	$(BIN)/python -m pytest -m "not slow"
+	$(BIN)/python -m pytest -m "not slow" -n 2 --dist loadfile
 
 test-slow: $(VENV)/.installed-test $(VENV)/.installed-acados $(VENV)/.installed-ros $(F1TENTH_GYM_FOR_TESTS)
 	$(BIN)/python -m pytest -m slow

@@ -11,6 +11,8 @@ from unittest import mock
 
 from probe_cases import CLEAR_ERROR, GRACEFUL, Evidence, Probe, case, cli_error, lap
 
+from ros_domain import ros_domain_id
+
 GROUP = "lost (issue 27)"
 SRC = Path(__file__).resolve().parents[2] / "src"
 REPO_CAR = Path(__file__).resolve().parents[2] / "configs" / "f1tenth.toml"
@@ -83,7 +85,7 @@ def bag_recorder_kill9(probe: Probe) -> Evidence:
 
 
 def _ros_environment(folder: Path) -> dict[str, str]:
-    domain = 1 + (os.getpid() * 31 + 27) % 200
+    domain = ros_domain_id("probe.lost")
     return _env(
         ROS_DOMAIN_ID=str(domain),
         ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",

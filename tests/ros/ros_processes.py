@@ -13,6 +13,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+from ros_domain import ros_domain_id
+
 SRC = Path(__file__).resolve().parents[2] / "src"
 #: The repository's car file: the one `rkmpc run --config` takes drives the simulated car over ROS.
 REPO_CAR = Path(__file__).resolve().parents[2] / "configs" / "f1tenth.toml"
@@ -22,7 +24,7 @@ HANG = 300.0
 
 def ros_environment(log_dir: Path, name: str) -> dict[str, str]:
     """The environment of ROS processes: localhost only, a domain id of their own, logs in ``log_dir``."""
-    domain = 1 + (os.getpid() * 31 + sum(map(ord, name))) % 200
+    domain = ros_domain_id(name)
     env = dict(os.environ)
     env.update(
         PYTHONPATH=os.pathsep.join([str(SRC), *filter(None, [env.get("PYTHONPATH")])]),

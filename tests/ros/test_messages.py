@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import json
-import os
 import sys
 from pathlib import Path
 
 import pytest
+
+from ros_domain import ros_domain_id
 
 pytest.importorskip("rclpy", reason="ROS 2 is not installed (make ros)", exc_type=ImportError)
 pytest.importorskip("ackermann_msgs", reason="ackermann_msgs is not built (make ros)", exc_type=ImportError)
@@ -56,7 +57,7 @@ def test_a_publisher_announces_the_upstream_type(monkeypatch, tmp_path):
     monkeypatch.setenv("ROS_LOG_DIR", str(tmp_path))
     context = rclpy.Context()
     rclpy.init(
-        context=context, domain_id=1 + os.getpid() % 200, signal_handler_options=SignalHandlerOptions.NO
+        context=context, domain_id=ros_domain_id("hash_probe"), signal_handler_options=SignalHandlerOptions.NO
     )
     try:
         node = rclpy.create_node("hash_probe", context=context)
