@@ -10,7 +10,8 @@ Two uses:
 
 - ``python benchmarks/steering_limit.py --tracks builtin ../shared/tracks/centerlines/*.csv``: a
   table over tracks of the largest kinematic wheel angle of the path (rad) and the metres of path
-  beyond the fraction and beyond the limit itself (the `f1tenth` preset's car unless ``--vehicle``).
+  beyond the fraction and beyond the limit itself (the `f1tenth` preset's car unless ``--vehicle``;
+  with ``--racelines ../shared/tracks/racelines``, of the tracks' race lines).
 - ``python benchmarks/steering_limit.py --track T runs/F [runs/F/sensors-f1tenth-real]``: for
   a comparison's step logs (``rkmpc compare --track T ... --out runs/F``), each controller's mean
   lateral error (m) over its first lap, near those places (within ``--window`` metres of path) and
@@ -43,15 +44,20 @@ def path_wheel_angle(scenario: Scenario) -> tuple[np.ndarray, np.ndarray]:
     return s, np.arctan(scenario.vehicle.wheelbase * kappa)
 
 
-def tracks_table(tracks: list[str], vehicle: str, fraction: float) -> str:
-    """Markdown: per track, the largest wheel angle of its path and the metres near and past the limit."""
+def tracks_table(tracks: list[str], vehicle: str, fraction: float, racelines: Path | None = None) -> str:
+    """Markdown: per track, the largest wheel angle of its path and the metres near and past the limit.
+
+    With ``racelines`` (a folder of TUM race lines named as the centre-line files), the path is the
+    track's race line there.
+    """
     lines = [
         f"| track | largest path wheel angle (rad) | path beyond {fraction:g} of the limit (m) "
         "| path beyond the limit (m) | length (m) |",
         "|---|---|---|---|---|",
     ]
     for track in tracks:
-        scenario = load_scenario(track, vehicle=vehicle)
+        raceline = None if racelines is None else racelines / Path(track).name
+        scenario = load_scenario(track, vehicle=vehicle, raceline=raceline)
         limit = scenario.vehicle.steering.max_angle
         _, wheel = path_wheel_angle(scenario)
         lines.append(
@@ -106,6 +112,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("folders", nargs="*", type=Path, help="comparison output folders (with --track)")
     parser.add_argument("--track", help="the comparisons' track (built-in name or centre-line CSV)")
     parser.add_argument("--tracks", nargs="+", help="tracks for the table of path wheel angles")
+    parser.add_argument("--racelines", type=Path, help="with --tracks: a folder of race lines to measure")
     parser.add_argument("--vehicle", default="f1tenth", help="vehicle preset (default: f1tenth)")
     parser.add_argument("--fraction", type=float, default=0.8, help="share of the steering limit (0.8)")
     parser.add_argument("--window", type=float, default=10.0, help="metres of path around each place (10)")
@@ -113,7 +120,7 @@ def main(argv: list[str] | None = None) -> int:
     if not 0.0 < args.fraction <= 1.0 or args.window <= 0.0:
         parser.error("--fraction must be in (0, 1] and --window positive")
     if args.tracks:
-        sys.stdout.write(tracks_table(args.tracks, args.vehicle, args.fraction) + "\n")
+        sys.stdout.write(tracks_table(args.tracks, args.vehicle, args.fraction, args.racelines) + "\n")
     if args.folders:
         if args.track is None:
             parser.error("comparison folders need --track")
