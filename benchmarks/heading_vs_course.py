@@ -17,11 +17,11 @@ Run: ``python benchmarks/heading_vs_course.py runs/demo [runs/demo/sensors-f1ten
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
 import numpy as np
+from compare_logs import first_laps
 
 from rkmpc.sim.log import StepLog
 
@@ -29,9 +29,8 @@ from rkmpc.sim.log import StepLog
 CONTROLLERS = ("lmpc", "lmpc-id", "nmpc-dynamic", "rkmpc")
 
 
-def lap_figures(log: StepLog, lap_time: float) -> tuple[float, float, float, float]:
-    """Mean |lateral error|, |heading error|, |beta| and |course error| over ``t <= lap_time``."""
-    first = log["t"] <= lap_time
+def lap_figures(log: StepLog, first: np.ndarray) -> tuple[float, float, float, float]:
+    """Mean |lateral error|, |heading error|, |beta| and |course error| over the steps ``first``."""
     heading = log["heading_error"][first]
     beta = log["state_beta"][first]
     return (
@@ -50,15 +49,11 @@ def table(folder: Path) -> str:
         "| controller | lateral (m) | heading (rad) | mean abs(beta) (rad) | course (rad) |",
         "|---|---|---|---|---|",
     ]
-    for name in CONTROLLERS:
-        path = folder / f"log_{name}.csv"
-        if not path.exists():
-            continue
-        meta = json.loads(Path(f"{path}.meta.json").read_text())
-        if not meta["lap_times"]:
+    for name, log, first in first_laps(folder, CONTROLLERS):
+        if first is None:
             lines.append(f"| {name} | no lap completed | | | |")
             continue
-        lateral, heading, beta, course = lap_figures(StepLog.from_csv(path), meta["lap_times"][0])
+        lateral, heading, beta, course = lap_figures(log, first)
         lines.append(f"| {name} | {lateral:.4f} | {heading:.4f} | {beta:.4f} | {course:.4f} |")
     return "\n".join(lines) + "\n"
 

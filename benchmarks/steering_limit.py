@@ -21,13 +21,12 @@ Two uses:
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
 import numpy as np
+from compare_logs import first_laps
 
-from rkmpc.sim.log import StepLog
 from rkmpc.sim.scenario import Scenario, load_scenario
 
 #: Controllers shown, in this order, where their logs exist.
@@ -75,15 +74,9 @@ def near_and_away(folder: Path, scenario: Scenario, fraction: float, window: flo
         return f"`{folder}`: the path stays below {fraction:g} of the steering limit\n"
     length = scenario.reference.path.length
     rows: dict[str, tuple[float, float, float, float]] = {}
-    for name in CONTROLLERS:
-        path = folder / f"log_{name}.csv"
-        if not path.exists():
+    for name, log, first in first_laps(folder, CONTROLLERS):
+        if first is None:
             continue
-        meta = json.loads(Path(f"{path}.meta.json").read_text())
-        if not meta["lap_times"]:
-            continue
-        log = StepLog.from_csv(path)
-        first = log["t"] <= meta["lap_times"][0]
         along = np.mod(log["s"][first], length)
         gap = np.abs(along[:, None] - hot[None, :])
         near = np.min(np.minimum(gap, length - gap), axis=1) < window
