@@ -2,26 +2,16 @@
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import numpy as np
 import pytest
 
 from rkmpc.core.observation import Observation
 from rkmpc.vehicle.kinematic import kinematic_rhs
 
-SCRIPT = Path(__file__).resolve().parents[2] / "benchmarks" / "plan_linearisation.py"
-
 
 @pytest.fixture
-def script(monkeypatch):
-    """The script as a module (its sibling ``steering_limit`` importable, as when run from the folder)."""
-    monkeypatch.syspath_prepend(str(SCRIPT.parent))
-    spec = importlib.util.spec_from_file_location("plan_linearisation", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+def script(benchmark_script):
+    return benchmark_script("plan_linearisation")
 
 
 def test_the_prediction_reproduces_the_plan_it_is_linearised_about(script, builtin_scenario):

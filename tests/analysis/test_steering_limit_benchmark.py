@@ -2,23 +2,13 @@
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import numpy as np
 import pytest
 
-SCRIPT = Path(__file__).resolve().parents[2] / "benchmarks" / "steering_limit.py"
-
 
 @pytest.fixture
-def script(monkeypatch):
-    """The script as a module (its sibling ``compare_logs`` importable, as when run from the folder)."""
-    monkeypatch.syspath_prepend(str(SCRIPT.parent))
-    spec = importlib.util.spec_from_file_location("steering_limit", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+def script(benchmark_script):
+    return benchmark_script("steering_limit")
 
 
 def test_the_path_wheel_angle_is_the_kinematic_one_of_the_curvature(script, builtin_scenario):
