@@ -23,7 +23,7 @@ import argparse
 import sys
 
 import numpy as np
-from steering_limit import path_wheel_angle
+from steering_limit import FRACTION, WINDOW, near, places_near_limit
 
 from rkmpc.control.linear.lmpc import LinearMPC
 from rkmpc.core.observation import Observation
@@ -33,11 +33,6 @@ from rkmpc.sim.run import RunSpec, build_plant
 from rkmpc.sim.scenario import Scenario, load_scenario
 from rkmpc.track.reference import ReferenceHorizon
 from rkmpc.vehicle.kinematic import kinematic_rhs, linearize_discrete
-
-#: Share of the steering limit that marks a place of the path as a hairpin (as steering_limit.py).
-FRACTION = 0.8
-#: Metres of path around each such place counted as "near" it.
-WINDOW = 10.0
 
 
 class PlanLinearisedLMPC(LinearMPC):
@@ -93,18 +88,13 @@ def row(track: str) -> str:
     if not isinstance(lmpc, LinearMPC):
         raise TypeError(f"{track}: the f1tenth preset's lmpc is not a LinearMPC")
     plan = PlanLinearisedLMPC(scenario.reference, scenario.vehicle, lmpc.config)
-    s, wheel = path_wheel_angle(scenario)
-    hot = s[wheel > FRACTION * scenario.vehicle.steering.max_angle]
-    length = scenario.reference.path.length
+    hot = places_near_limit(scenario)
     cells = []
     for controller in (lmpc, plan):
         outcome, along, error, heading = lap(scenario, controller)
-        near = np.zeros(len(along), dtype=bool)
-        if hot.size:
-            gap = np.abs(np.mod(along, length)[:, None] - hot[None, :])
-            near = np.min(np.minimum(gap, length - gap), axis=1) < WINDOW
-        near_mean = f"{error[near].mean():.4f}" if near.any() else "-"
-        cells.append((outcome, error.mean(), error.max(), heading, near_mean, error[~near].mean()))
+        close = near(along, hot, scenario.reference.path.length)
+        near_mean = f"{error[close].mean():.4f}" if close.any() else "-"
+        cells.append((outcome, error.mean(), error.max(), heading, near_mean, error[~close].mean()))
     (o1, m1, x1, h1, n1, a1), (o2, m2, x2, h2, n2, a2) = cells
     return (
         f"| {scenario.track.name} | {o1} / {o2} | {m1:.4f} / {m2:.4f} ({m2 / m1 - 1:+.0%}) "

@@ -3,8 +3,8 @@
 The kinematic wheel angle of a path is ``atan(L * kappa)`` (``L`` the wheelbase, ``kappa`` the
 path's curvature). Where it comes near the steering limit (``--fraction`` of it, 0.8 by default),
 the car must turn in at full lock through its servo's lag, and where it passes the limit no car of
-that wheelbase can follow the line at all. The linear MPCs plan around the reference's own wheel
-angle; the nonlinear ones predict the whole turn with the servo and the limit.
+that wheelbase can follow the line at all (docs/sensors.md measures what each controller loses
+there).
 
 Two uses:
 
@@ -33,6 +33,10 @@ from rkmpc.sim.scenario import Scenario, load_scenario
 CONTROLLERS = ("lmpc", "lmpc-id", "nmpc-dynamic", "rkmpc")
 #: Spacing (m) at which the path's curvature is sampled.
 SPACING = 0.02
+#: Share of the steering limit that marks a place of the path (``--fraction``).
+FRACTION = 0.8
+#: Metres of path around each such place counted as near it (``--window``).
+WINDOW = 10.0
 
 
 def path_wheel_angle(scenario: Scenario) -> tuple[np.ndarray, np.ndarray]:
@@ -41,6 +45,23 @@ def path_wheel_angle(scenario: Scenario) -> tuple[np.ndarray, np.ndarray]:
     s = np.arange(0.0, path.length, SPACING)
     kappa = np.abs(np.array([path.curvature(x) for x in s], dtype=float).ravel())
     return s, np.arctan(scenario.vehicle.wheelbase * kappa)
+
+
+def places_near_limit(scenario: Scenario, fraction: float = FRACTION) -> np.ndarray:
+    """Arc lengths (m) of the path where its wheel angle passes ``fraction`` of the steering limit."""
+    s, wheel = path_wheel_angle(scenario)
+    return s[wheel > fraction * scenario.vehicle.steering.max_angle]
+
+
+def near(along: np.ndarray, places: np.ndarray, length: float, window: float = WINDOW) -> np.ndarray:
+    """Whether each arc length ``along`` (m) is within ``window`` m of path of one of ``places``.
+
+    Distances are taken around the closed path of length ``length``; no places, no step is near.
+    """
+    if places.size == 0:
+        return np.zeros(len(along), dtype=bool)
+    gap = np.abs(np.mod(along, length)[:, None] - places[None, :])
+    return np.min(np.minimum(gap, length - gap), axis=1) < window
 
 
 def tracks_table(tracks: list[str], vehicle: str, fraction: float, racelines: Path | None = None) -> str:
@@ -68,8 +89,7 @@ def tracks_table(tracks: list[str], vehicle: str, fraction: float, racelines: Pa
 
 def near_and_away(folder: Path, scenario: Scenario, fraction: float, window: float) -> str:
     """Markdown: each controller's lateral error near the places of the path close to the limit and away."""
-    s, wheel = path_wheel_angle(scenario)
-    hot = s[wheel > fraction * scenario.vehicle.steering.max_angle]
+    hot = places_near_limit(scenario, fraction)
     if hot.size == 0:
         return f"`{folder}`: the path stays below {fraction:g} of the steering limit\n"
     length = scenario.reference.path.length
@@ -77,11 +97,14 @@ def near_and_away(folder: Path, scenario: Scenario, fraction: float, window: flo
     for name, log, first in first_laps(folder, CONTROLLERS):
         if first is None:
             continue
-        along = np.mod(log["s"][first], length)
-        gap = np.abs(along[:, None] - hot[None, :])
-        near = np.min(np.minimum(gap, length - gap), axis=1) < window
+        close = near(log["s"][first], hot, length, window)
         error = np.abs(log["lateral_error"][first])
-        rows[name] = (float(error.mean()), float(error[near].mean()), float(error[~near].mean()), near.mean())
+        rows[name] = (
+            float(error.mean()),
+            float(error[close].mean()),
+            float(error[~close].mean()),
+            close.mean(),
+        )
     share = next(iter(rows.values()))[3] if rows else 0.0
     lines = [
         f"`{folder}` ({share:.0%} of the lap's steps within {window:g} m of path beyond {fraction:g} of the "
@@ -107,8 +130,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--tracks", nargs="+", help="tracks for the table of path wheel angles")
     parser.add_argument("--racelines", type=Path, help="with --tracks: a folder of race lines to measure")
     parser.add_argument("--vehicle", default="f1tenth", help="vehicle preset (default: f1tenth)")
-    parser.add_argument("--fraction", type=float, default=0.8, help="share of the steering limit (0.8)")
-    parser.add_argument("--window", type=float, default=10.0, help="metres of path around each place (10)")
+    parser.add_argument("--fraction", type=float, default=FRACTION, help="share of the steering limit (0.8)")
+    parser.add_argument("--window", type=float, default=WINDOW, help="metres of path around each place (10)")
     args = parser.parse_args(argv)
     if not 0.0 < args.fraction <= 1.0 or args.window <= 0.0:
         parser.error("--fraction must be in (0, 1] and --window positive")
