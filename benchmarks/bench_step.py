@@ -47,6 +47,7 @@ CASES: tuple[Case, ...] = (
     ("pp", "pp", {}, None),
     ("lmpc (daqp)", "lmpc", {"lmpc": {"solver": "daqp"}}, None),
     ("lmpc (osqp)", "lmpc", {"lmpc": {"solver": "osqp"}}, None),
+    ("lmpc (daqp, plan)", "lmpc", {"lmpc": {"solver": "daqp", "linearisation": "plan"}}, None),
     ("nmpc (ipopt)", "nmpc", {}, None),
     ("nmpc (sqp, 1 it)", "nmpc", {"nmpc": {"solver": "sqpmethod", "max_iterations": 1}}, None),
     ("nmpc-dyn (ipopt)", "nmpc-dynamic", {}, None),

@@ -9,6 +9,7 @@ import pytest
 
 from rkmpc.analysis.metrics import lap_metrics
 from rkmpc.control.linear.lmpc_id import IdentifiedLMPC
+from rkmpc.control.linear.problem import condense
 from rkmpc.estimation.steering import SteeringModel, WheelAnglePropagator
 from rkmpc.learning.identification import IdentifiedModel
 from rkmpc.learning.servo_fit import lag_delay_weights
@@ -23,12 +24,13 @@ def _model(tau: float = 0.08, delay: float = 0.0, rate: float | None = None) -> 
 
 
 class _Recording(IdentifiedLMPC):
-    """Keeps the full model of its last step."""
+    """Keeps the full condensed model of its last step."""
 
     def _model(self, observation, ref, u_ref):
-        self.full = super()._model(observation, ref, u_ref)
+        xi0, A, B = super()._model(observation, ref, u_ref)
+        self.full = (xi0, *condense(A, B))
         self.wheel_ref = self._wheel_reference(ref)
-        return self.full
+        return xi0, A, B
 
 
 @pytest.mark.parametrize("delay", [0.0, 0.03, 0.05, 0.07, 0.12])

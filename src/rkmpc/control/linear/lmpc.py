@@ -6,11 +6,17 @@ QP in the input deviations (:mod:`rkmpc.control.linear.problem`), and the QP is
 solved by a backend of :mod:`rkmpc.control.qp` that was set up once and is only
 updated. The QP's Hessian changes at every step, so it is factorised with
 LAPACK rather than by the QP solver (see :class:`rkmpc.control.qp.DaqpQP`).
+
+With ``linearisation = "plan"`` the model is linearised instead about the previous step's plan,
+shifted by one step and rolled out from the measured pose (the linear time-varying MPC of a
+real-time iteration). The prediction then has an affine part, carried as a constant state: a 1
+appended to the initial deviation and one more column of ``Phi``, as the identified LMPC carries
+its constant state (:mod:`rkmpc.control.linear.lmpc_id`).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -26,7 +32,10 @@ from rkmpc.vehicle.params import VehicleParams
 if TYPE_CHECKING:
     from rkmpc.track.reference import Reference, ReferenceHorizon
 
-__all__ = ["LMPCConfig", "LinearMPC"]
+__all__ = ["LINEARISATIONS", "LMPCConfig", "LinearMPC"]
+
+#: Where :class:`LinearMPC` linearises the kinematic model (:attr:`LMPCConfig.linearisation`).
+LINEARISATIONS = ("reference", "plan")
 
 
 @dataclass(frozen=True)
@@ -46,15 +55,24 @@ class LMPCConfig(TrackingCost):
         QP backend, ``"daqp"`` (default) or ``"osqp"``.
     max_iterations : int
         QP iteration budget per step; a solve that exceeds it falls back.
+    linearisation : str
+        Where the kinematic model is linearised: ``"reference"`` (default), along the time-indexed
+        reference as the paper's MPC1 (Eq. 2-3); ``"plan"``, about the previous step's plan shifted
+        by one step and rolled out from the measured pose, with the affine term (along the reference
+        on the first step and after a failed solve). The LMPC, ``lmpc-id`` (its pose rows; its servo is
+        linear) and the baselines of ``rkmpc`` and ``rkmpc-paper`` read it; ``kmpc``, which shares
+        these settings, has no kinematic model to linearise.
     """
 
     solver: str = "daqp"
     max_iterations: int = 200
+    linearisation: str = "reference"
 
     def __post_init__(self) -> None:
         super().__post_init__()
         check_iterations(self, self.max_iterations)
         require_choice(self, "solver", QP_SOLVERS)
+        require_choice(self, "linearisation", LINEARISATIONS)
 
 
 class LinearMPC(TrackingController):
@@ -124,11 +142,27 @@ class LinearMPC(TrackingController):
 
         A residual MPC (:mod:`rkmpc.control.learned.residual_base`) corrects the plan through the
         kinematic model's input channel, so it needs the pose deviations predicted by the kinematic
-        model along the reference. Here that is the LMPC's own prediction; a baseline with a richer
-        model (:class:`~rkmpc.control.linear.lmpc_id.IdentifiedLMPC`) returns its plan with the
-        kinematic rows. None before the first step.
+        model along the reference. Linearised along the reference, that is the LMPC's own
+        prediction; linearised about its plan, or with a richer model
+        (:class:`~rkmpc.control.linear.lmpc_id.IdentifiedLMPC`), it is the plan with the kinematic
+        prediction along the reference (:meth:`_along_reference`). None before the first step.
         """
-        return self.last_prediction
+        last = self.last_prediction
+        if last is None or self.config.linearisation == "reference":
+            return last
+        return self._along_reference(last)
+
+    def _along_reference(self, last: Prediction) -> Prediction:
+        """``last`` with the pose deviation and the kinematic ``Phi, Gamma`` along the reference.
+
+        Linearised at the reference inputs ``[v_r, delta_r]``, as the nominal LMPC predicts (no
+        affine part, no servo, no understeer): the input channel a residual model's ``U_p`` lives in.
+        """
+        n = self.config.horizon
+        ref = last.reference
+        u_ref = np.column_stack([ref.v[:n], ref.delta[:n]])
+        Phi, Gamma = self.problem.prediction_matrices(ref.theta[:n], u_ref[:, 0], u_ref[:, 1])
+        return replace(last, xi0=last.xi0[:3].copy(), Phi=Phi, Gamma=Gamma, u_ref=u_ref)
 
     def residual_applied(self, command: np.ndarray) -> None:
         """A residual MPC on top sent ``command`` (``[speed, steer]``) after this step's plan.
@@ -149,5 +183,40 @@ class LinearMPC(TrackingController):
                 wrap_scalar(observation.yaw - ref.theta[0]),
             ]
         )
-        Phi, Gamma = self.problem.prediction_matrices(ref.theta[:n], u_ref[:, 0], u_ref[:, 1])
-        return xi0, Phi, Gamma
+        if self.config.linearisation == "reference":
+            Phi, Gamma = self.problem.prediction_matrices(ref.theta[:n], u_ref[:, 0], u_ref[:, 1])
+            return xi0, Phi, Gamma
+        return self._about_plan(observation, xi0, ref, u_ref)
+
+    def _about_plan(
+        self, observation: Observation, xi0: np.ndarray, ref: ReferenceHorizon, u_ref: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(xi0, 1)`` and ``([Phi, a], Gamma)`` linearised about the previous plan, shifted a step.
+
+        The plan's inputs ``U_bar`` (the last one held) are rolled out from the measured pose with
+        the forward-Euler kinematic model, giving ``X_bar``. Linearised there, the deviations from
+        the reference are ``X = (X_bar - X_r) + Gamma ((U - U_r) - (U_bar - U_r))``: with ``xi0`` the
+        measured deviation, the affine column is ``a = X_bar - X_r - Phi xi0 - Gamma (U_bar - U_r)``.
+        Without a plan (the first step, after a failed solve) ``U_bar`` is the reference's and
+        ``a`` is zero.
+        """
+        n, T = self.config.horizon, self.config.dt
+        if self.last_plan is None:
+            Phi, Gamma = self.problem.prediction_matrices(ref.theta[:n], u_ref[:, 0], u_ref[:, 1])
+            return np.append(xi0, 1.0), np.column_stack([Phi, np.zeros(3 * n)]), Gamma
+        u_bar = np.vstack([self.last_plan[1:], self.last_plan[-1:]])
+        speed, steer = u_bar[:, 0], u_bar[:, 1]
+        # The roll-out, in the reference's continuous heading.
+        heading = np.empty(n + 1)
+        heading[0] = ref.theta[0] + xi0[2]
+        heading[1:] = heading[0] + np.cumsum(T * speed * np.tan(steer) / self.vehicle.wheelbase)
+        x_bar = np.empty((n, 3))
+        x_bar[:, 0] = observation.x + np.cumsum(T * speed * np.cos(heading[:n]))
+        x_bar[:, 1] = observation.y + np.cumsum(T * speed * np.sin(heading[:n]))
+        x_bar[:, 2] = heading[1:]
+        x_bar[:, 0] -= ref.x[1 : n + 1]
+        x_bar[:, 1] -= ref.y[1 : n + 1]
+        x_bar[:, 2] -= ref.theta[1 : n + 1]
+        Phi, Gamma = self.problem.prediction_matrices(heading[:n], speed, steer)
+        affine = x_bar.reshape(-1) - Phi @ xi0 - Gamma @ (u_bar - u_ref).reshape(-1)
+        return np.append(xi0, 1.0), np.column_stack([Phi, affine]), Gamma

@@ -95,7 +95,8 @@ class IdentifiedLMPC(LinearMPC):
         model: IdentifiedModel,
         config: LMPCConfig | None = None,
     ) -> None:
-        dt = (config if config is not None else LMPCConfig()).dt
+        settings = config if config is not None else LMPCConfig()
+        dt = settings.dt
         self.model = model
         servo = SteeringModel.from_identified(model, vehicle.steering.max_angle)
         self._wheel = WheelAnglePropagator(servo, dt)
@@ -123,27 +124,72 @@ class IdentifiedLMPC(LinearMPC):
     def _prediction(
         self, observation: Observation, ref: ReferenceHorizon, u_ref: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        xi0, Phi, Gamma = self._model(observation, ref, u_ref)
+        xi0, A, B = self._model(observation, ref, u_ref)
+        Phi, Gamma = condense(A, B)
+        if self.config.linearisation == "plan" and self.last_plan is not None:
+            Phi, Gamma = self._about_plan_id(xi0, (A, B), (Phi, Gamma), ref, u_ref, self.last_plan)
         n, nx = self.config.horizon, len(xi0)
         Phi = Phi.reshape(n, nx, nx)[:, :3].reshape(3 * n, nx)
         Gamma = np.ascontiguousarray(Gamma.reshape(n, nx, 2 * n)[:, :3].reshape(3 * n, 2 * n))
         return xi0, Phi, Gamma
 
+    def _about_plan_id(
+        self,
+        xi0: np.ndarray,
+        model: tuple[np.ndarray, np.ndarray],
+        condensed: tuple[np.ndarray, np.ndarray],
+        ref: ReferenceHorizon,
+        u_ref: np.ndarray,
+        plan: np.ndarray,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """``Phi, Gamma`` of every state, the pose rows linearised about ``plan`` shifted a step.
+
+        The wheel and the commands on their way are linear in the commands: the model along the
+        reference (``model``, its ``A, B``; ``condensed``, its ``Phi, Gamma``) gives the wheel
+        angles of the shifted plan ``U_bar`` exactly. The pose is rolled out from the measured
+        one with those wheel angles and the plan's speeds (heading rate
+        ``v tan(delta_w) / (L + K v^2)``), the pose rows of ``A, B`` are linearised there, and the
+        roll-out's offset from the new linear prediction goes into the constant state's column,
+        as :meth:`LinearMPC._about_plan` does for the kinematic model.
+        """
+        n, nx, T = self.config.horizon, len(xi0), self.config.dt
+        L, K = self.vehicle.wheelbase, self.model.understeer_gradient
+        u_bar = np.vstack([plan[1:], plan[-1:]])
+        du_bar = (u_bar - u_ref).reshape(-1)
+        Phi, Gamma = condensed
+        states = (Phi @ xi0 + Gamma @ du_bar).reshape(n, nx)
+        wheel_ref = self._wheel_reference(ref)
+        wheel = wheel_ref[:n] + np.concatenate([[xi0[3]], states[:-1, 3]])
+        speed = u_bar[:, 0]
+        l_eff = effective_wheelbase(L, K, speed)
+        heading = np.empty(n + 1)
+        heading[0] = ref.theta[0] + xi0[2]
+        heading[1:] = heading[0] + np.cumsum(T * speed * np.tan(wheel) / l_eff)
+        theta = heading[:n]
+        pose = np.empty((n, 3))
+        pose[:, 0] = ref.x[0] + xi0[0] + np.cumsum(T * speed * np.cos(theta)) - ref.x[1 : n + 1]
+        pose[:, 1] = ref.y[0] + xi0[1] + np.cumsum(T * speed * np.sin(theta)) - ref.y[1 : n + 1]
+        pose[:, 2] = heading[1:] - ref.theta[1 : n + 1]
+        A, B = (m.copy() for m in model)
+        A[:, 0, 2] = -speed * np.sin(theta) * T
+        A[:, 1, 2] = speed * np.cos(theta) * T
+        A[:, 2, 3] = speed * T / (l_eff * np.cos(wheel) ** 2)
+        B[:, 0, 0] = np.cos(theta) * T
+        B[:, 1, 0] = np.sin(theta) * T
+        B[:, 2, 0] = np.tan(wheel) * T * (L - K * speed * speed) / (l_eff * l_eff)
+        Phi, Gamma = condense(A, B)
+        linear = (Phi @ xi0 + Gamma @ du_bar).reshape(n, nx)[:, :3]
+        Phi.reshape(n, nx, nx)[:, :3, -1] += pose - linear
+        return Phi, Gamma
+
     def kinematic_prediction(self) -> Prediction | None:
         """The last plan with the plain kinematic model's pose prediction along the reference.
 
-        The pose deviation and the kinematic ``Phi, Gamma`` linearised at the reference inputs
-        ``[v_r, delta_r]``, as the nominal LMPC predicts (no servo, no understeer): the input
-        channel a residual model's ``U_p`` lives in.
+        As the nominal LMPC predicts (no servo, no understeer): the input channel a residual
+        model's ``U_p`` lives in (:meth:`LinearMPC._along_reference`).
         """
         last = self.last_prediction
-        if last is None:
-            return None
-        n = self.config.horizon
-        ref = last.reference
-        u_ref = np.column_stack([ref.v[:n], ref.delta[:n]])
-        Phi, Gamma = self.problem.prediction_matrices(ref.theta[:n], u_ref[:, 0], u_ref[:, 1])
-        return replace(last, xi0=last.xi0[:3].copy(), Phi=Phi, Gamma=Gamma, u_ref=u_ref)
+        return None if last is None else self._along_reference(last)
 
     def residual_applied(self, command: np.ndarray) -> None:
         # The wheel state runs from the commands the car was sent, the correction included.
@@ -152,7 +198,7 @@ class IdentifiedLMPC(LinearMPC):
     def _model(
         self, observation: Observation, ref: ReferenceHorizon, u_ref: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Initial state and condensed prediction ``(xi0, Phi, Gamma)`` of every state of the model.
+        """Initial state ``xi0`` and the model ``(A, B)`` of every state along the reference.
 
         Advances the wheel-angle estimate by one step: call once per step.
         """
@@ -205,8 +251,7 @@ class IdentifiedLMPC(LinearMPC):
         B[:, 3, 1] = self._w[0]
         if pending:
             B[:, 4, 1] = 1.0
-        Phi, Gamma = condense(A, B)
-        return xi0, Phi, Gamma
+        return xi0, A, B
 
 
 def with_rate_limit(vehicle: VehicleParams, rate_limit: float | None) -> VehicleParams:
