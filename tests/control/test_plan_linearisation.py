@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from driving import drive_then_step
 from rkmpc.analysis.metrics import lap_metrics
 from rkmpc.control.linear.lmpc import LinearMPC, LMPCConfig
 from rkmpc.control.linear.lmpc_id import IdentifiedLMPC
@@ -69,13 +70,7 @@ def test_a_residual_mpc_on_top_gets_the_kinematic_prediction_along_the_reference
     sc = builtin_scenario
     mpc = LinearMPC(sc.reference, sc.vehicle, PLAN)
     assert mpc.kinematic_prediction() is None
-    plant = make_plant("f1tenth")
-    start = sc.reference.horizon(0.0, 1, sc.dt)
-    plant.reset(start.x[0], start.y[0], start.theta[0], start.v[0], start.delta[0])
-    for _ in range(20):
-        plant.step(mpc.step(plant.observe()), sc.dt)
-    obs = plant.observe()
-    mpc.step(obs)
+    obs = drive_then_step(sc, mpc, 20)
     own, kin = mpc.last_prediction, mpc.kinematic_prediction()
     assert own is not None and kin is not None
     assert own.xi0.shape == (4,) and np.any(own.Phi[:, 3] != 0.0)
@@ -119,13 +114,7 @@ def test_lmpc_id_about_its_plan_predicts_the_roll_out_of_its_servo_and_pose(buil
     sc = builtin_scenario
     model = IdentifiedModel(0.08, 0.02, 0.99, 0.9, 1000, "delay-lag", 0.05, None)
     ctrl = _RecordingId(sc.reference, sc.vehicle, model, PLAN)
-    plant = make_plant("f1tenth")
-    start = sc.reference.horizon(0.0, 1, sc.dt)
-    plant.reset(start.x[0], start.y[0], start.theta[0], start.v[0], start.delta[0])
-    for _ in range(45):  # into the first corner, with a history of commands and plans
-        plant.step(ctrl.step(plant.observe()), sc.dt)
-    obs = plant.observe()
-    ctrl.step(obs)
+    obs = drive_then_step(sc, ctrl, 45)  # into the first corner, with a history of commands and plans
     pred = ctrl.last_prediction
     assert ctrl.about is not None and pred is not None
     n, T, L, K = ctrl.config.horizon, sc.dt, sc.vehicle.wheelbase, model.understeer_gradient

@@ -7,6 +7,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from driving import drive_then_step
 from rkmpc.control.learned.rkmpc import ResidualKoopmanMPC
 from rkmpc.control.linear.lmpc import LinearMPC, LMPCConfig
 from rkmpc.control.linear.lmpc_id import IdentifiedLMPC
@@ -39,11 +40,7 @@ def test_lmpc_id_hands_a_residual_mpc_its_plan_with_the_kinematic_prediction(bui
     sc = builtin_scenario
     ctrl = IdentifiedLMPC(sc.reference, sc.vehicle, _identified())
     assert ctrl.kinematic_prediction() is None
-    plant = _start(sc)
-    for _ in range(30):
-        plant.step(ctrl.step(plant.observe()), sc.dt)
-    obs = plant.observe()
-    ctrl.step(obs)
+    obs = drive_then_step(sc, ctrl, 30)
     own, kin = ctrl.last_prediction, ctrl.kinematic_prediction()
     assert own is not None and kin is not None
     n = ctrl.config.horizon
