@@ -150,17 +150,17 @@ class LinearMPC(TrackingController):
         last = self.last_prediction
         if last is None or self.config.linearisation == "reference":
             return last
-        return self._along_reference(last)
+        return self._along_reference(last, last.u_ref)
 
-    def _along_reference(self, last: Prediction) -> Prediction:
+    def _along_reference(self, last: Prediction, u_ref: np.ndarray) -> Prediction:
         """``last`` with the pose deviation and the kinematic ``Phi, Gamma`` along the reference.
 
-        Linearised at the reference inputs ``[v_r, delta_r]``, as the nominal LMPC predicts (no
-        affine part, no servo, no understeer): the input channel a residual model's ``U_p`` lives in.
+        Linearised at the reference inputs ``u_ref`` (``[v_r, delta_r]``, shape (N, 2)), as the
+        nominal LMPC predicts (no affine part, no servo, no understeer): the input channel a
+        residual model's ``U_p`` lives in.
         """
         n = self.config.horizon
         ref = last.reference
-        u_ref = np.column_stack([ref.v[:n], ref.delta[:n]])
         Phi, Gamma = self.problem.prediction_matrices(ref.theta[:n], u_ref[:, 0], u_ref[:, 1])
         return replace(last, xi0=last.xi0[:3].copy(), Phi=Phi, Gamma=Gamma, u_ref=u_ref)
 

@@ -185,11 +185,15 @@ class IdentifiedLMPC(LinearMPC):
     def kinematic_prediction(self) -> Prediction | None:
         """The last plan with the plain kinematic model's pose prediction along the reference.
 
-        As the nominal LMPC predicts (no servo, no understeer): the input channel a residual
-        model's ``U_p`` lives in (:meth:`LinearMPC._along_reference`).
+        At the path's own inputs ``[v_r, delta_r]``, as the nominal LMPC predicts (no servo, no
+        understeer): the input channel a residual model's ``U_p`` lives in
+        (:meth:`LinearMPC._along_reference`).
         """
         last = self.last_prediction
-        return None if last is None else self._along_reference(last)
+        if last is None:
+            return None
+        n, ref = self.config.horizon, last.reference
+        return self._along_reference(last, np.column_stack([ref.v[:n], ref.delta[:n]]))
 
     def residual_applied(self, command: np.ndarray) -> None:
         # The wheel state runs from the commands the car was sent, the correction included.
