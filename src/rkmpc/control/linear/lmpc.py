@@ -32,7 +32,7 @@ from rkmpc.vehicle.params import VehicleParams
 if TYPE_CHECKING:
     from rkmpc.track.reference import Reference, ReferenceHorizon
 
-__all__ = ["LINEARISATIONS", "LMPCConfig", "LinearMPC"]
+__all__ = ["LINEARISATIONS", "LMPCConfig", "LinearMPC", "roll_out"]
 
 #: Where :class:`LinearMPC` linearises the kinematic model (:attr:`LMPCConfig.linearisation`).
 LINEARISATIONS = ("reference", "plan")
@@ -206,17 +206,47 @@ class LinearMPC(TrackingController):
             return np.append(xi0, 1.0), np.column_stack([Phi, np.zeros(3 * n)]), Gamma
         u_bar = np.vstack([self.last_plan[1:], self.last_plan[-1:]])
         speed, steer = u_bar[:, 0], u_bar[:, 1]
-        # The roll-out, in the reference's continuous heading.
-        heading = np.empty(n + 1)
-        heading[0] = ref.theta[0] + xi0[2]
-        heading[1:] = heading[0] + np.cumsum(T * speed * np.tan(steer) / self.vehicle.wheelbase)
-        x_bar = np.empty((n, 3))
-        x_bar[:, 0] = observation.x + np.cumsum(T * speed * np.cos(heading[:n]))
-        x_bar[:, 1] = observation.y + np.cumsum(T * speed * np.sin(heading[:n]))
-        x_bar[:, 2] = heading[1:]
-        x_bar[:, 0] -= ref.x[1 : n + 1]
-        x_bar[:, 1] -= ref.y[1 : n + 1]
-        x_bar[:, 2] -= ref.theta[1 : n + 1]
-        Phi, Gamma = self.problem.prediction_matrices(heading[:n], speed, steer)
+        start = (observation.x, observation.y, ref.theta[0] + xi0[2])
+        theta, x_bar = roll_out(start, speed, T * speed * np.tan(steer) / self.vehicle.wheelbase, T, ref)
+        Phi, Gamma = self.problem.prediction_matrices(theta, speed, steer)
         affine = x_bar.reshape(-1) - Phi @ xi0 - Gamma @ (u_bar - u_ref).reshape(-1)
         return np.append(xi0, 1.0), np.column_stack([Phi, affine]), Gamma
+
+
+def roll_out(
+    start: tuple[float, float, float],
+    speed: np.ndarray,
+    turns: np.ndarray,
+    dt: float,
+    ref: ReferenceHorizon,
+) -> tuple[np.ndarray, np.ndarray]:
+    """A plan's pose, rolled out by forward Euler from ``start``, and its deviation from ``ref``.
+
+    Parameters
+    ----------
+    start : tuple of float
+        ``(x, y, theta)`` at step 0 (m, m, rad; the heading in the reference's continuous angle).
+    speed, turns : numpy.ndarray
+        The plan's speed (m/s) and heading change (rad) of each step, shape (N,).
+    dt : float
+        The period (s).
+    ref : ReferenceHorizon
+        The reference the deviations are taken from.
+
+    Returns
+    -------
+    theta : numpy.ndarray
+        Headings (rad) of steps 0..N-1, shape (N,): where the model is linearised.
+    deviation : numpy.ndarray
+        ``[x, y, theta]`` of steps 1..N less the reference's, shape (N, 3).
+    """
+    n = len(speed)
+    heading = np.empty(n + 1)
+    heading[0] = start[2]
+    heading[1:] = heading[0] + np.cumsum(turns)
+    theta = heading[:n]
+    deviation = np.empty((n, 3))
+    deviation[:, 0] = start[0] + np.cumsum(dt * speed * np.cos(theta)) - ref.x[1 : n + 1]
+    deviation[:, 1] = start[1] + np.cumsum(dt * speed * np.sin(theta)) - ref.y[1 : n + 1]
+    deviation[:, 2] = heading[1:] - ref.theta[1 : n + 1]
+    return theta, deviation

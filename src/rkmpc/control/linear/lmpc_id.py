@@ -50,7 +50,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from rkmpc.control.linear.lmpc import LinearMPC, LMPCConfig
+from rkmpc.control.linear.lmpc import LinearMPC, LMPCConfig, roll_out
 from rkmpc.control.linear.problem import Prediction, condense
 from rkmpc.core.angles import wrap_scalar
 from rkmpc.core.observation import Observation
@@ -95,8 +95,7 @@ class IdentifiedLMPC(LinearMPC):
         model: IdentifiedModel,
         config: LMPCConfig | None = None,
     ) -> None:
-        settings = config if config is not None else LMPCConfig()
-        dt = settings.dt
+        dt = (config if config is not None else LMPCConfig()).dt
         self.model = model
         servo = SteeringModel.from_identified(model, vehicle.steering.max_angle)
         self._wheel = WheelAnglePropagator(servo, dt)
@@ -162,14 +161,8 @@ class IdentifiedLMPC(LinearMPC):
         wheel = wheel_ref[:n] + np.concatenate([[xi0[3]], states[:-1, 3]])
         speed = u_bar[:, 0]
         l_eff = effective_wheelbase(L, K, speed)
-        heading = np.empty(n + 1)
-        heading[0] = ref.theta[0] + xi0[2]
-        heading[1:] = heading[0] + np.cumsum(T * speed * np.tan(wheel) / l_eff)
-        theta = heading[:n]
-        pose = np.empty((n, 3))
-        pose[:, 0] = ref.x[0] + xi0[0] + np.cumsum(T * speed * np.cos(theta)) - ref.x[1 : n + 1]
-        pose[:, 1] = ref.y[0] + xi0[1] + np.cumsum(T * speed * np.sin(theta)) - ref.y[1 : n + 1]
-        pose[:, 2] = heading[1:] - ref.theta[1 : n + 1]
+        start = (ref.x[0] + xi0[0], ref.y[0] + xi0[1], ref.theta[0] + xi0[2])
+        theta, pose = roll_out(start, speed, T * speed * np.tan(wheel) / l_eff, T, ref)
         A, B = (m.copy() for m in model)
         A[:, 0, 2] = -speed * np.sin(theta) * T
         A[:, 1, 2] = speed * np.cos(theta) * T
