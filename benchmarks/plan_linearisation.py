@@ -6,11 +6,14 @@ car is off the path, or the path asks for more than the car can do, that is not 
 will be. With ``[controllers.lmpc] linearisation = "plan"`` it linearises instead about the
 previous step's plan, shifted by one step and rolled out from the measured pose, with the affine
 term (the linear time-varying MPC of a real-time iteration); nothing else changes: same weights,
-bounds, solver and deviation variables. This table drives both on each track.
+bounds, solver and deviation variables. This table drives both on each track. ``--linearisation
+plan-midpoint`` drives the LMPC that rolls its plan out by the midpoint rule instead of forward
+Euler (``docs/design.md``: most of what ``"plan"`` gains is the forward-Euler roll-out's).
 
 Ideal sensors, the ``f1tenth`` preset's car and settings, seed 0, one lap.
 
-Run: ``python benchmarks/plan_linearisation.py builtin ../shared/tracks/centerlines/*.csv``.
+Run: ``python benchmarks/plan_linearisation.py builtin ../shared/tracks/centerlines/*.csv``
+(``--linearisation plan-midpoint`` for the midpoint roll-out).
 """
 
 from __future__ import annotations
@@ -22,7 +25,7 @@ from dataclasses import replace
 import numpy as np
 from steering_limit import FRACTION, WINDOW, near, places_near_limit
 
-from rkmpc.control.linear.lmpc import LinearMPC
+from rkmpc.control.linear.lmpc import LINEARISATIONS, LinearMPC
 from rkmpc.sim.build import build_controller
 from rkmpc.sim.closed_loop import SimConfig, simulate
 from rkmpc.sim.run import RunSpec, build_plant
@@ -44,13 +47,13 @@ def lap(scenario: Scenario, controller: LinearMPC) -> tuple[str, np.ndarray, np.
     )
 
 
-def row(track: str) -> str:
-    """One Markdown row: the LMPC and the plan-linearised LMPC on ``track``."""
+def row(track: str, linearisation: str) -> str:
+    """One Markdown row: the LMPC and the LMPC with ``linearisation`` on ``track``."""
     scenario = load_scenario(track)
     lmpc = build_controller("lmpc", scenario)
     if not isinstance(lmpc, LinearMPC):
         raise TypeError(f"{track}: the f1tenth preset's lmpc is not a LinearMPC")
-    plan = LinearMPC(scenario.reference, scenario.vehicle, replace(lmpc.config, linearisation="plan"))
+    plan = LinearMPC(scenario.reference, scenario.vehicle, replace(lmpc.config, linearisation=linearisation))
     hot = places_near_limit(scenario)
     cells = []
     for controller in (lmpc, plan):
@@ -69,16 +72,22 @@ def row(track: str) -> str:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("tracks", nargs="+", help="built-in track names or centre-line CSV files")
+    parser.add_argument(
+        "--linearisation",
+        choices=[name for name in LINEARISATIONS if name != "reference"],
+        default="plan",
+        help="the LMPC compared with the paper's (default: plan)",
+    )
     args = parser.parse_args(argv)
     sys.stdout.write(
-        "LMPC / plan-linearised LMPC, ideal sensors, one lap; near: within "
+        f"LMPC / LMPC with linearisation {args.linearisation!r}, ideal sensors, one lap; near: within "
         f"{WINDOW:g} m of path beyond {FRACTION:g} of the steering limit\n\n"
         "| track | outcome | lateral mean (m) | lateral max (m) | heading mean (rad) | near (m) "
         "| away (m) |\n"
         "|---|---|---|---|---|---|---|\n"
     )
     for track in args.tracks:
-        sys.stdout.write(row(track) + "\n")
+        sys.stdout.write(row(track, args.linearisation) + "\n")
         sys.stdout.flush()
     return 0
 

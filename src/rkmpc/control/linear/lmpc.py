@@ -9,7 +9,9 @@ LAPACK rather than by the QP solver (see :class:`rkmpc.control.qp.DaqpQP`).
 
 With ``linearisation = "plan"`` the model is linearised instead about the previous step's plan,
 shifted by one step and rolled out from the measured pose (the linear time-varying MPC of a
-real-time iteration). The prediction then has an affine part, carried as a constant state: a 1
+real-time iteration); ``"plan-midpoint"`` rolls the plan out with each step's positions advanced
+along the heading at the middle of the step, second-order accurate where forward Euler is first
+(:func:`roll_out`). The prediction then has an affine part, carried as a constant state: a 1
 appended to the initial deviation and one more column of ``Phi``, as the identified LMPC carries
 its constant state (:mod:`rkmpc.control.linear.lmpc_id`).
 """
@@ -35,7 +37,7 @@ if TYPE_CHECKING:
 __all__ = ["LINEARISATIONS", "LMPCConfig", "LinearMPC", "roll_out"]
 
 #: Where :class:`LinearMPC` linearises the kinematic model (:attr:`LMPCConfig.linearisation`).
-LINEARISATIONS = ("reference", "plan")
+LINEARISATIONS = ("reference", "plan", "plan-midpoint")
 
 
 @dataclass(frozen=True)
@@ -59,9 +61,12 @@ class LMPCConfig(TrackingCost):
         Where the kinematic model is linearised: ``"reference"`` (default), along the time-indexed
         reference as the paper's MPC1 (Eq. 2-3); ``"plan"``, about the previous step's plan shifted
         by one step and rolled out from the measured pose, with the affine term (along the reference
-        on the first step and after a failed solve). The LMPC, ``lmpc-id`` (its pose rows; its servo is
-        linear) and the baselines of ``rkmpc`` and ``rkmpc-paper`` read it; ``kmpc``, which shares
-        these settings, has no kinematic model to linearise.
+        on the first step and after a failed solve); ``"plan-midpoint"``, the same with the plan rolled
+        out by the midpoint rule (:func:`roll_out`). The forward-Euler roll-out of ``"plan"`` predicts
+        a car in a corner outside the arc it drives, and the LMPC steers into corners earlier to undo
+        that: most of what ``"plan"`` gains (``docs/design.md``). The LMPC, ``lmpc-id`` (its pose
+        rows; its servo is linear) and the baselines of ``rkmpc`` and ``rkmpc-paper`` read it;
+        ``kmpc``, which shares these settings, has no kinematic model to linearise.
     """
 
     solver: str = "daqp"
@@ -194,7 +199,7 @@ class LinearMPC(TrackingController):
         """``(xi0, 1)`` and ``([Phi, a], Gamma)`` linearised about the previous plan, shifted a step.
 
         The plan's inputs ``U_bar`` (the last one held) are rolled out from the measured pose with
-        the forward-Euler kinematic model, giving ``X_bar``. Linearised there, the deviations from
+        the kinematic model (:func:`roll_out`), giving ``X_bar``. Linearised there, the deviations from
         the reference are ``X = (X_bar - X_r) + Gamma ((U - U_r) - (U_bar - U_r))``: with ``xi0`` the
         measured deviation, the affine column is ``a = X_bar - X_r - Phi xi0 - Gamma (U_bar - U_r)``.
         Without a plan (the first step, after a failed solve) ``U_bar`` is the reference's and
@@ -207,7 +212,10 @@ class LinearMPC(TrackingController):
         u_bar = np.vstack([self.last_plan[1:], self.last_plan[-1:]])
         speed, steer = u_bar[:, 0], u_bar[:, 1]
         start = (observation.x, observation.y, ref.theta[0] + xi0[2])
-        theta, x_bar = roll_out(start, speed, T * speed * np.tan(steer) / self.vehicle.wheelbase, T, ref)
+        turns = T * speed * np.tan(steer) / self.vehicle.wheelbase
+        theta, x_bar = roll_out(
+            start, speed, turns, T, ref, midpoint=self.config.linearisation == "plan-midpoint"
+        )
         Phi, Gamma = self.problem.prediction_matrices(theta, speed, steer)
         affine = x_bar.reshape(-1) - Phi @ xi0 - Gamma @ (u_bar - u_ref).reshape(-1)
         return np.append(xi0, 1.0), np.column_stack([Phi, affine]), Gamma
@@ -219,8 +227,17 @@ def roll_out(
     turns: np.ndarray,
     dt: float,
     ref: ReferenceHorizon,
+    *,
+    midpoint: bool = False,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """A plan's pose, rolled out by forward Euler from ``start``, and its deviation from ``ref``.
+    """A plan's pose, rolled out from ``start``, and its deviation from ``ref``.
+
+    Forward Euler by default, as the linear model is discretised: each step moves ``dt * speed``
+    along the heading at its start. With ``midpoint`` it moves along the heading at the middle of
+    the step (the start's plus half the step's turn). For a constant turn that is the direction of
+    the arc's chord: the steps are chords of a circle larger than the car's by a relative
+    ``turn^2 / 24``. Forward Euler's steps start half a turn too early and end outside the car's
+    circle by about ``dt * speed * turn / 2`` each.
 
     Parameters
     ----------
@@ -232,6 +249,8 @@ def roll_out(
         The period (s).
     ref : ReferenceHorizon
         The reference the deviations are taken from.
+    midpoint : bool
+        Advance the positions along each step's middle heading instead of its first.
 
     Returns
     -------
@@ -245,8 +264,9 @@ def roll_out(
     heading[0] = start[2]
     heading[1:] = heading[0] + np.cumsum(turns)
     theta = heading[:n]
+    course = theta + 0.5 * turns if midpoint else theta
     deviation = np.empty((n, 3))
-    deviation[:, 0] = start[0] + np.cumsum(dt * speed * np.cos(theta)) - ref.x[1 : n + 1]
-    deviation[:, 1] = start[1] + np.cumsum(dt * speed * np.sin(theta)) - ref.y[1 : n + 1]
+    deviation[:, 0] = start[0] + np.cumsum(dt * speed * np.cos(course)) - ref.x[1 : n + 1]
+    deviation[:, 1] = start[1] + np.cumsum(dt * speed * np.sin(course)) - ref.y[1 : n + 1]
     deviation[:, 2] = heading[1:] - ref.theta[1 : n + 1]
     return theta, deviation
