@@ -79,6 +79,16 @@ class LMPCConfig(TrackingCost):
         require_choice(self, "solver", QP_SOLVERS)
         require_choice(self, "linearisation", LINEARISATIONS)
 
+    @property
+    def about_plan(self) -> bool:
+        """Whether the model is linearised about the previous plan (either roll-out rule)."""
+        return self.linearisation != "reference"
+
+    @property
+    def midpoint(self) -> bool:
+        """Whether the plan is rolled out by the midpoint rule (:func:`roll_out`)."""
+        return self.linearisation == "plan-midpoint"
+
 
 class LinearMPC(TrackingController):
     """The paper's linear MPC (MPC1) on the kinematic bicycle model.
@@ -153,7 +163,7 @@ class LinearMPC(TrackingController):
         prediction along the reference (:meth:`_along_reference`). None before the first step.
         """
         last = self.last_prediction
-        if last is None or self.config.linearisation == "reference":
+        if last is None or not self.config.about_plan:
             return last
         return self._along_reference(last, last.u_ref)
 
@@ -188,7 +198,7 @@ class LinearMPC(TrackingController):
                 wrap_scalar(observation.yaw - ref.theta[0]),
             ]
         )
-        if self.config.linearisation == "reference":
+        if not self.config.about_plan:
             Phi, Gamma = self.problem.prediction_matrices(ref.theta[:n], u_ref[:, 0], u_ref[:, 1])
             return xi0, Phi, Gamma
         return self._about_plan(observation, xi0, ref, u_ref)
@@ -213,9 +223,7 @@ class LinearMPC(TrackingController):
         speed, steer = u_bar[:, 0], u_bar[:, 1]
         start = (observation.x, observation.y, ref.theta[0] + xi0[2])
         turns = T * speed * np.tan(steer) / self.vehicle.wheelbase
-        theta, x_bar = roll_out(
-            start, speed, turns, T, ref, midpoint=self.config.linearisation == "plan-midpoint"
-        )
+        theta, x_bar = roll_out(start, speed, turns, T, ref, midpoint=self.config.midpoint)
         Phi, Gamma = self.problem.prediction_matrices(theta, speed, steer)
         affine = x_bar.reshape(-1) - Phi @ xi0 - Gamma @ (u_bar - u_ref).reshape(-1)
         return np.append(xi0, 1.0), np.column_stack([Phi, affine]), Gamma

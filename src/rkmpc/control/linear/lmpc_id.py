@@ -125,7 +125,7 @@ class IdentifiedLMPC(LinearMPC):
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         xi0, A, B = self._model(observation, ref, u_ref)
         Phi, Gamma = condense(A, B)
-        if self.config.linearisation != "reference" and self.last_plan is not None:
+        if self.config.about_plan and self.last_plan is not None:
             Phi, Gamma = self._about_plan_id(xi0, (A, B), (Phi, Gamma), ref, u_ref, self.last_plan)
         n, nx = self.config.horizon, len(xi0)
         Phi = Phi.reshape(n, nx, nx)[:, :3].reshape(3 * n, nx)
@@ -162,8 +162,8 @@ class IdentifiedLMPC(LinearMPC):
         speed = u_bar[:, 0]
         l_eff = effective_wheelbase(L, K, speed)
         start = (ref.x[0] + xi0[0], ref.y[0] + xi0[1], ref.theta[0] + xi0[2])
-        midpoint = self.config.linearisation == "plan-midpoint"
-        theta, pose = roll_out(start, speed, T * speed * np.tan(wheel) / l_eff, T, ref, midpoint=midpoint)
+        turns = T * speed * np.tan(wheel) / l_eff
+        theta, pose = roll_out(start, speed, turns, T, ref, midpoint=self.config.midpoint)
         A, B = (m.copy() for m in model)
         A[:, 0, 2] = -speed * np.sin(theta) * T
         A[:, 1, 2] = speed * np.cos(theta) * T
